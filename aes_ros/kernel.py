@@ -1,0 +1,142 @@
+"""Fused numba kernel for the batched simulator (E1–E9 in one pass).
+
+Same mathematics as the plain numpy path in :mod:`aes_ros.simulator`
+(``backend="numpy"``), which the tests compare it with. One pass over the
+robots of one run computes the spring force, the drives, the metrics and the
+noisy Euler step without temporaries; runs are spread over the cores with
+``prange``. Float64 throughout: float32 gained < 15 % in measurements and would
+break the 1 mm agreement with the ROS system.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+#: Layout of the ``params`` vector passed to :func:`advance`.
+PARAM_ORDER = (
+    "alpha", "beta", "k", "v0", "w_l", "w_r", "d_r", "d_theta", "dt",
+    "dir_x", "dir_y", "omega", "center_x", "center_y", "use_centroid", "noise",
+    "clip", "max_linear_speed", "max_angular_speed",
+)  # fmt: skip
+
+
+@njit(cache=True, fastmath=False, parallel=True)
+def advance(
+    positions: np.ndarray,
+    headings: np.ndarray,
+    neighbors: np.ndarray,
+    rest_lengths: np.ndarray,
+    params: np.ndarray,
+    noise_x: np.ndarray,
+    noise_y: np.ndarray,
+    normals: np.ndarray,
+    n_steps: int,
+    metrics: np.ndarray,
+    pos_hist: np.ndarray,
+    head_hist: np.ndarray,
+) -> None:
+    """Advance every run by ``n_steps`` Euler steps in place.
+
+    positions : (B, N, 2) [m], updated. headings : (B, N) [rad], updated.
+    neighbors : (N, K) int64, -1 padded at the end of each row. rest_lengths : (N, K) [m].
+    params : see PARAM_ORDER.
+    noise_x, noise_y, normals : (B, C, N) noise for C >= n_steps steps: the
+        sensing-noise unit vector ξ̂_r = (cos a, sin a) and ξ_θ.
+    metrics : (B, C, 5) out: alignment, heading order, total force, centroid x, y
+        of the state *before* each step.
+    pos_hist : (B, C, N, 2) or (0, 0, 0, 2), head_hist : (B, C, N) or (0, 0, 0):
+        the state before each step, when recording.
+    """
+    alpha, beta, k, v0 = params[0], params[1], params[2], params[3]
+    w_l, w_r, d_r, d_theta, dt = params[4], params[5], params[6], params[7], params[8]
+    lin_x, lin_y = w_l * params[9], w_l * params[10]
+    rot = w_r * params[11]
+    use_centroid = params[14] != 0.0
+    noisy = params[15] != 0.0
+    clip = params[16] != 0.0
+    max_lin, max_ang = params[17], params[18]
+    amp_r = d_r / math.sqrt(dt)
+    amp_t = d_theta / math.sqrt(dt)
+    B, N = headings.shape
+    K = neighbors.shape[1]
+    record = pos_hist.shape[0] > 0
+    two_pi = 2.0 * math.pi
+    for b in prange(B):
+        new_pos = np.empty((N, 2))
+        new_head = np.empty(N)
+        pos = positions[b]
+        head = headings[b]
+        for step in range(n_steps):
+            cx = 0.0
+            cy = 0.0
+            for i in range(N):
+                cx += pos[i, 0]
+                cy += pos[i, 1]
+            cx /= N
+            cy /= N
+            if use_centroid:
+                ox, oy = cx, cy
+            else:
+                ox, oy = params[12], params[13]
+            psi = 0.0
+            total = 0.0
+            sum_c = 0.0
+            sum_s = 0.0
+            for i in range(N):
+                xi = pos[i, 0]
+                yi = pos[i, 1]
+                fx = 0.0
+                fy = 0.0
+                for slot in range(K):
+                    j = neighbors[i, slot]
+                    if j < 0:
+                        break
+                    rx = pos[j, 0] - xi
+                    ry = pos[j, 1] - yi
+                    d = math.sqrt(rx * rx + ry * ry)
+                    rest = rest_lengths[i, slot]
+                    if d > 0.0 and rest > 0.0:
+                        scale = k / rest * (d - rest) / d
+                        fx += scale * rx
+                        fy += scale * ry
+                fx += lin_x
+                fy += lin_y
+                if rot != 0.0:
+                    fx += -rot * (yi - oy)
+                    fy += rot * (xi - ox)
+                th = head[i]
+                c = math.cos(th)
+                s = math.sin(th)
+                fn = math.sqrt(fx * fx + fy * fy)
+                total += fn
+                psi += abs(fx * c + fy * s) / fn if fn > 0.0 else 1.0
+                sum_c += c
+                sum_s += s
+                if record:
+                    pos_hist[b, step, i, 0] = xi
+                    pos_hist[b, step, i, 1] = yi
+                    head_hist[b, step, i] = th
+                turn_noise = 0.0
+                if noisy:
+                    fx += amp_r * noise_x[b, step, i]
+                    fy += amp_r * noise_y[b, step, i]
+                    turn_noise = amp_t * normals[b, step, i]
+                u = v0 + alpha * (fx * c + fy * s)
+                w = beta * (-fx * s + fy * c) + turn_noise
+                if clip:
+                    u = min(max(u, -max_lin), max_lin)
+                    w = min(max(w, -max_ang), max_ang)
+                new_pos[i, 0] = xi + u * dt * c
+                new_pos[i, 1] = yi + u * dt * s
+                th = th + w * dt + math.pi
+                new_head[i] = th - two_pi * math.floor(th / two_pi) - math.pi
+            metrics[b, step, 0] = psi / N
+            metrics[b, step, 1] = math.sqrt(sum_c * sum_c + sum_s * sum_s) / N
+            metrics[b, step, 2] = total
+            metrics[b, step, 3] = cx
+            metrics[b, step, 4] = cy
+            pos[:, :] = new_pos
+            head[:] = new_head

@@ -1,0 +1,276 @@
+"""The Active Elastic Sheet model with the Raoufi extensions (SPEC §1, E1–E6).
+
+Pure functions on arrays with leading batch axes: ``positions (..., N, 2)``
+[m; odom], ``headings (..., N)`` [rad, counter-clockwise from +x]. The same
+code runs for one robot, one swarm or a batch of B swarms.
+
+:func:`robot_command` is the control law of one robot. The ROS robot node calls
+exactly this function with its own pose and its neighbours' positions; the
+offline simulator calls the same building blocks for every robot at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from aes_ros.params import PARAMS
+
+
+@dataclass(frozen=True)
+class Gains:
+    """Gains and noise strengths (SPEC §4 defaults: the paper's Table 1)."""
+
+    alpha: float = PARAMS["alpha"].default
+    beta: float = PARAMS["beta"].default
+    k: float = PARAMS["k"].default
+    v0: float = PARAMS["v0"].default
+    w_l: float = PARAMS["w_l"].default
+    w_r: float = PARAMS["w_r"].default
+    d_r: float = PARAMS["d_r"].default
+    d_theta: float = PARAMS["d_theta"].default
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> Gains:
+        """Pick the gain fields out of a larger mapping (e.g. a scenario)."""
+        return cls(**{f.name: float(values[f.name]) for f in fields(cls) if f.name in values})
+
+
+@dataclass(frozen=True)
+class SwarmCommand:
+    """What the supervisor tells every robot (SPEC §1.3, §7).
+
+    direction : v_d, world frame; its length scales the drive, (0, 0) switches it off.
+    omega : rotation rate ω [rad/s], counter-clockwise positive.
+    center : x_c [m]; None means the live centroid of the swarm.
+    """
+
+    direction: tuple[float, float] = (-1.0, 0.0)
+    omega: float = 0.0
+    center: tuple[float, float] | None = None
+
+
+def spring_force(offsets: np.ndarray, rest_lengths: np.ndarray, k: float) -> np.ndarray:
+    """Spring force on one robot from its neighbours (E1).
+
+    f = Σ_j (k / l_ij)(|r_ij| - l_ij) r_ij / |r_ij|,  r_ij = x_j - x_i.
+
+    A stretched spring pulls toward the neighbour, a compressed one pushes away.
+    Slots with ``rest_lengths <= 0`` (padding) and coincident robots
+    (|r_ij| = 0, direction undefined) contribute nothing.
+
+    Parameters
+    ----------
+    offsets : (..., K, 2) r_ij [m].
+    rest_lengths : (..., K) l_ij [m].
+    k : stiffness.
+
+    Returns
+    -------
+    (..., 2) force.
+    """
+    dist = np.sqrt(np.sum(offsets * offsets, axis=-1))
+    active = (rest_lengths > 0) & (dist > 0)
+    safe_rest = np.where(active, rest_lengths, 1.0)
+    safe_dist = np.where(active, dist, 1.0)
+    scale = np.where(active, k / safe_rest * (dist - rest_lengths) / safe_dist, 0.0)
+    return np.sum(scale[..., None] * offsets, axis=-2)
+
+
+def spring_forces(
+    positions: np.ndarray, neighbors: np.ndarray, rest_lengths: np.ndarray, k: float
+) -> np.ndarray:
+    """Spring force on every robot (E1).
+
+    positions : (..., N, 2) [m]; neighbors : (N, K) ids, -1 padded;
+    rest_lengths : (N, K) [m]. Returns (..., N, 2).
+    """
+    offsets = positions[..., neighbors, :] - positions[..., :, None, :]
+    return spring_force(offsets, np.where(neighbors >= 0, rest_lengths, 0.0), k)
+
+
+def linear_force(direction: np.ndarray, w_l: float) -> np.ndarray:
+    """Linear drive, the same for every robot (E2): f_lin = w_l v_d. Returns (..., 2)."""
+    return w_l * np.asarray(direction, dtype=float)
+
+
+def rotation_forces(
+    positions: np.ndarray, center: np.ndarray, omega: float, w_r: float
+) -> np.ndarray:
+    """Rotation about x_c (E3): f_rot,i = w_r ω (-(y_i - y_c), x_i - x_c).
+
+    ω > 0 turns counter-clockwise (the paper's sign is the opposite).
+    positions : (..., N, 2); center : (..., 2). Returns (..., N, 2).
+    """
+    rel = positions - np.asarray(center)[..., None, :]
+    return (w_r * omega) * np.stack([-rel[..., 1], rel[..., 0]], axis=-1)
+
+
+def centroid(positions: np.ndarray) -> np.ndarray:
+    """Centroid (..., 2) of positions (..., N, 2)."""
+    return positions.mean(axis=-2)
+
+
+def total_forces(
+    positions: np.ndarray,
+    neighbors: np.ndarray,
+    rest_lengths: np.ndarray,
+    gains: Gains,
+    command: SwarmCommand,
+) -> np.ndarray:
+    """Noise-free total force on every robot (E4): f = f_spring + f_lin + f_rot.
+
+    The rotation centre is ``command.center`` or, if None, the live centroid of
+    each swarm in the batch. Returns (..., N, 2).
+    """
+    center = centroid(positions) if command.center is None else np.asarray(command.center)
+    force = spring_forces(positions, neighbors, rest_lengths, gains.k)
+    force += linear_force(command.direction, gains.w_l)
+    if command.omega != 0.0:
+        force += rotation_forces(positions, center, command.omega, gains.w_r)
+    return force
+
+
+Noise = tuple[np.ndarray, np.ndarray, np.ndarray]
+"""One step's noise: the unit vector ξ̂_r as (x, y) components, and ξ_θ."""
+
+
+def draw_noise(
+    rng: np.random.Generator, shape: tuple[int, ...] = (), out: Noise | None = None
+) -> Noise:
+    """Noise for ``shape`` robot-steps (SPEC §1.4).
+
+    The angle of ξ̂_r is uniform in [-π, π) and ξ_θ ~ N(0, 1), independent.
+    Draws all angles, then all normals, from ``rng``. The unit vector's
+    components are evaluated in float32 (10× faster than float64 trig here; an
+    error of 1e-7 in a random direction is harmless) and stored as float64.
+    Both the simulator and the robot nodes draw through here, so a seed means
+    the same thing everywhere.
+
+    Returns (xi_x, xi_y, xi_theta), float64 arrays of ``shape`` (``out`` if given).
+    """
+    if out is None:
+        out = (np.empty(shape), np.empty(shape), np.empty(shape))
+    xi_x, xi_y, xi_theta = out
+    angles = rng.random(size=shape)
+    angles *= 2.0 * np.pi
+    angles -= np.pi
+    angles32 = angles.astype(np.float32)
+    np.cos(angles32, out=xi_x, casting="unsafe")
+    np.sin(angles32, out=xi_y, casting="unsafe")
+    rng.standard_normal(out=xi_theta)
+    return xi_x, xi_y, xi_theta
+
+
+def motion_commands(
+    forces: np.ndarray,
+    headings: np.ndarray,
+    gains: Gains,
+    dt: float,
+    noise: Noise | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Forward speed and turn rate from the force (E5, E6).
+
+    g = f + (D_r/√Δt) ξ̂_r;  u = v_0 + α g·n̂;  ω = β g·n̂⊥ + (D_θ/√Δt) ξ_θ.
+
+    Parameters
+    ----------
+    forces : (..., N, 2) noise-free force f (E4), world frame.
+    headings : (..., N) θ [rad].
+    gains : α, β, v_0, D_r, D_θ.
+    dt : Δt [s]; scales the noise.
+    noise : (xi_x, xi_y, xi_theta) from :func:`draw_noise`, or None for no noise.
+
+    Returns
+    -------
+    u : (..., N) forward speed [m/s]; turn_rate : (..., N) [rad/s].
+    """
+    gx, gy = forces[..., 0], forces[..., 1]
+    turn_noise = 0.0
+    if noise is not None:
+        xi_x, xi_y, xi_theta = noise
+        amp = gains.d_r / np.sqrt(dt)
+        gx = gx + amp * xi_x
+        gy = gy + amp * xi_y
+        turn_noise = gains.d_theta / np.sqrt(dt) * xi_theta
+    c, s = np.cos(headings), np.sin(headings)
+    u = gains.v0 + gains.alpha * (gx * c + gy * s)
+    turn_rate = gains.beta * (-gx * s + gy * c) + turn_noise
+    return u, turn_rate
+
+
+def clip_commands(
+    u: np.ndarray, turn_rate: np.ndarray, max_linear_speed: float, max_angular_speed: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Clip commands to the robot's limits (SPEC §5), each axis independently."""
+    return (
+        np.clip(u, -max_linear_speed, max_linear_speed),
+        np.clip(turn_rate, -max_angular_speed, max_angular_speed),
+    )
+
+
+def unicycle_step(
+    positions: np.ndarray, headings: np.ndarray, u: np.ndarray, turn_rate: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Explicit Euler step of the unicycle (E5, E6), using the heading before the step.
+
+    Returns new positions (..., N, 2) and headings (..., N) wrapped to [-π, π).
+    """
+    step = (u * dt)[..., None] * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+    return positions + step, wrap_angle(headings + turn_rate * dt)
+
+
+def wrap_angle(theta: np.ndarray) -> np.ndarray:
+    """Wrap angles [rad] to [-π, π)."""
+    return (theta + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class RobotCommand:
+    """Output of the control law for one robot."""
+
+    linear: float  #: forward speed u [m/s] -> cmd_vel.linear.x
+    angular: float  #: turn rate [rad/s] -> cmd_vel.angular.z
+    force: np.ndarray  #: noise-free force f_i (E4), world frame, (2,)
+
+
+def robot_command(
+    position: np.ndarray,
+    heading: float,
+    neighbor_positions: np.ndarray,
+    rest_lengths: np.ndarray,
+    gains: Gains,
+    command: SwarmCommand,
+    dt: float,
+    rng: np.random.Generator | None = None,
+    limits: tuple[float, float] | None = None,
+) -> RobotCommand:
+    """The control law of one robot (E1–E6): what a robot node publishes as ``cmd_vel``.
+
+    Needs only the robot's own pose, its neighbours' *positions* (never their
+    headings) and the swarm command.
+
+    Parameters
+    ----------
+    position : (2,) own position [m; odom]. heading : own θ [rad].
+    neighbor_positions : (K, 2) positions of the neighbours heard from [m].
+    rest_lengths : (K,) their rest lengths l_ij [m].
+    gains, command : model gains and the supervisor's command; ``command.center``
+        must be set (the supervisor publishes the live centroid).
+    dt : control period Δt [s] (scales the noise).
+    rng : noise source; None switches noise off.
+    limits : (max_linear_speed, max_angular_speed) to clip to, or None.
+    """
+    position = np.asarray(position, dtype=float)
+    offsets = np.asarray(neighbor_positions, dtype=float).reshape(-1, 2) - position
+    force = spring_force(offsets, np.asarray(rest_lengths, dtype=float), gains.k)
+    force = force + linear_force(command.direction, gains.w_l)
+    if command.omega != 0.0:
+        center = position if command.center is None else command.center
+        force = force + rotation_forces(position[None, :], center, command.omega, gains.w_r)[0]
+    noise = draw_noise(rng) if rng is not None else None
+    u, turn_rate = motion_commands(force, np.asarray(heading, dtype=float), gains, dt, noise)
+    if limits is not None:
+        u, turn_rate = clip_commands(u, turn_rate, *limits)
+    return RobotCommand(float(u), float(turn_rate), force)

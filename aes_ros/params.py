@@ -1,0 +1,257 @@
+"""One definition of every model and scenario parameter (SPEC §1, §4, §5).
+
+Each :class:`ParamSpec` carries the name, default, allowed range, unit and a
+description. The scenario loader, the ``--set`` option of the CLI, the ROS
+nodes' ``ParameterDescriptor`` s and the README table are all built from
+:data:`PARAMS`, so a range or a default is changed in exactly one place.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+
+class ParameterError(ValueError):
+    """A parameter value is missing, of the wrong type or out of range.
+
+    The message always names the field and what is allowed.
+    """
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Definition of one parameter.
+
+    ``kind`` is one of ``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"vec2"``
+    (two floats) or ``"center"`` (``"centroid"`` or two floats).
+    ``low``/``high`` bound numbers (and every component of a ``vec2``);
+    ``choices`` lists allowed strings.
+    """
+
+    name: str
+    default: Any
+    kind: str
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+
+    def allowed(self) -> str:
+        """Human-readable statement of the allowed values."""
+        if self.choices:
+            return "one of " + ", ".join(self.choices)
+        if self.kind == "bool":
+            return "true or false"
+        if self.kind == "str":
+            return "a string"
+        rng = f"[{self.low:g}, {self.high:g}]"
+        if self.kind == "int":
+            return f"an integer in {rng}"
+        if self.kind == "vec2":
+            return f"two numbers 'x,y', each in {rng}"
+        if self.kind == "center":
+            return f"'centroid' or two numbers 'x,y', each in {rng}"
+        return f"a number in {rng}"
+
+    def validate(self, value: Any) -> Any:
+        """Return ``value`` converted to this parameter's type, or raise ParameterError."""
+        try:
+            return self._convert(value)
+        except (TypeError, ValueError) as exc:
+            raise ParameterError(
+                f"{self.name}: {value!r} is not allowed ({exc}); expected {self.allowed()}"
+            ) from None
+
+    def _convert(self, value: Any) -> Any:
+        if self.kind == "bool":
+            if isinstance(value, bool):
+                return value
+            if isinstance(value, str) and value.lower() in ("true", "false", "1", "0"):
+                return value.lower() in ("true", "1")
+            raise ValueError("not a boolean")
+        if self.kind == "str":
+            value = str(value)
+            if self.choices and value not in self.choices:
+                raise ValueError("unknown choice")
+            return value
+        if self.kind == "center" and isinstance(value, str) and value == "centroid":
+            return "centroid"
+        if self.kind in ("vec2", "center"):
+            if isinstance(value, str):
+                value = [v for v in value.replace("[", "").replace("]", "").split(",") if v]
+            if isinstance(value, bool) or len(value) != 2:
+                raise ValueError("need exactly two numbers")
+            return (self._number(value[0], float), self._number(value[1], float))
+        if self.kind == "int":
+            if isinstance(value, float) and not value.is_integer():
+                raise ValueError("not an integer")
+            return self._number(value, int)
+        return self._number(value, float)
+
+    def _number(self, value: Any, typ: type) -> Any:
+        if isinstance(value, bool):
+            raise ValueError("not a number")
+        if typ is int:
+            number = int(value) if not isinstance(value, str) else int(value.strip())
+        else:
+            number = float(value)
+        if not math.isfinite(number):
+            raise ValueError("not finite")
+        if (self.low is not None and number < self.low) or (
+            self.high is not None and number > self.high
+        ):
+            raise ValueError("out of range")
+        return number
+
+
+def _p(
+    name: str, default: Any, kind: str, description: str, unit: str = "", **kw: Any
+) -> ParamSpec:
+    return ParamSpec(name, default, kind, description, unit, **kw)
+
+
+#: Every scenario parameter, in the order the docs list them. Defaults are the
+#: paper's Table 1 (SPEC §4), with the rotation rate in our counter-clockwise
+#: convention (the paper's ω = 0.7 clockwise is ω = -0.7 here).
+PARAMS: dict[str, ParamSpec] = {
+    p.name: p
+    for p in [
+        # --- formation (SPEC §1.2, §4) ---
+        _p(
+            "formation",
+            "grid",
+            "str",
+            "initial formation: square grid, hexagonal sheet or CSV file",
+            choices=("grid", "hex", "csv"),
+        ),
+        _p("rows", 10, "int", "grid rows", low=1, high=1000),
+        _p("cols", 10, "int", "grid columns", low=1, high=1000),
+        _p("rings", 5, "int", "hexagonal sheet rings s (N = 3s(s+1)+1)", low=0, high=100),
+        _p("formation_file", "", "str", "CSV file of nominal positions x,y (formation: csv)"),
+        _p(
+            "spacing",
+            0.2,
+            "float",
+            "nominal distance between neighbours d_init",
+            "m",
+            low=0.01,
+            high=100.0,
+        ),
+        _p(
+            "neighbor_factor",
+            1.01,
+            "float",
+            "neighbour radius as a multiple of spacing (1.01: 4-neighbourhood on a grid, "
+            "1.5: with diagonals)",
+            low=0.5,
+            high=10.0,
+        ),
+        _p(
+            "perturbation",
+            0.1,
+            "float",
+            "initial offset of each robot per axis, uniform up to this fraction of spacing",
+            low=0.0,
+            high=0.5,
+        ),
+        # --- gains and noise (SPEC §1.3, §1.4) ---
+        _p("alpha", 0.066, "float", "translational gain α (E5)", "m/(s·N)", low=0.0, high=10.0),
+        _p("beta", 0.97, "float", "rotational gain β (E6)", "rad/(s·N)", low=0.0, high=50.0),
+        _p("k", 1.28, "float", "spring stiffness k (E1)", "N", low=0.0, high=100.0),
+        _p("v0", 0.05, "float", "forward bias speed v_0", "m/s", low=-1.0, high=1.0),
+        _p("w_l", 0.8, "float", "linear-drive weight w_l (E2)", low=0.0, high=10.0),
+        _p("w_r", 1.0, "float", "rotation weight w_r (E3)", low=0.0, high=10.0),
+        _p("d_r", 0.5, "float", "sensing-noise strength D_r", "N·s^0.5", low=0.0, high=10.0),
+        _p(
+            "d_theta",
+            0.02,
+            "float",
+            "actuation-noise strength D_θ",
+            "rad/s^0.5",
+            low=0.0,
+            high=10.0,
+        ),
+        # --- swarm command (SPEC §1.3) ---
+        _p(
+            "direction",
+            (-1.0, 0.0),
+            "vec2",
+            "desired direction v_d (world frame; length scales the drive, 0,0 switches it off)",
+            low=-10.0,
+            high=10.0,
+        ),
+        _p(
+            "omega",
+            -0.7,
+            "float",
+            "rotation rate ω, counter-clockwise positive (REP-103)",
+            "rad/s",
+            low=-10.0,
+            high=10.0,
+        ),
+        _p(
+            "rotation_center",
+            "centroid",
+            "center",
+            "rotation centre x_c: the live centroid or a fixed point",
+            "m",
+            low=-1e4,
+            high=1e4,
+        ),
+        # --- integration and robot limits (SPEC §1.4, §5) ---
+        _p("dt", 0.05, "float", "Euler time step Δt (20 Hz control)", "s", low=1e-4, high=1.0),
+        _p("duration", 30.0, "float", "run length t_f", "s", low=0.0, high=1e5),
+        _p("clip", False, "bool", "clip commands to the robot's limits"),
+        _p(
+            "max_linear_speed",
+            0.13,
+            "float",
+            "Mona's top forward speed (9 rad/s × 15 mm)",
+            "m/s",
+            low=0.0,
+            high=10.0,
+        ),
+        _p(
+            "max_angular_speed",
+            3.4,
+            "float",
+            "Mona's top turn rate (2·0.13 m/s / 78 mm)",
+            "rad/s",
+            low=0.0,
+            high=100.0,
+        ),
+    ]
+}
+
+
+def validate_params(values: dict[str, Any], source: str = "") -> dict[str, Any]:
+    """Validate a mapping of parameter names to values.
+
+    Raises ParameterError naming the first unknown key or bad value; ``source``
+    (e.g. a file name) prefixes the message.
+    """
+    prefix = f"{source}: " if source else ""
+    out: dict[str, Any] = {}
+    for key, value in values.items():
+        if key not in PARAMS:
+            raise ParameterError(f"{prefix}unknown parameter {key!r}; allowed: {', '.join(PARAMS)}")
+        try:
+            out[key] = PARAMS[key].validate(value)
+        except ParameterError as exc:
+            raise ParameterError(prefix + str(exc)) from None
+    return out
+
+
+def markdown_table(names: list[str] | None = None) -> str:
+    """The parameter table for the README (name, default, unit, range, description)."""
+    rows = ["| name | default | unit | allowed | description |", "|---|---|---|---|---|"]
+    for spec in PARAMS.values():
+        if names is None or spec.name in names:
+            rows.append(
+                f"| `{spec.name}` | {spec.default} | {spec.unit} | {spec.allowed()} | "
+                f"{spec.description} |"
+            )
+    return "\n".join(rows)

@@ -1,0 +1,310 @@
+"""Batched offline simulator of the AES model (SPEC §1.4): B independent runs at once.
+
+Each run b has its own ``numpy.random.Generator`` (seeded with ``seeds[b]``):
+it draws the initial state first (:func:`aes_ros.formations.perturbed_start`),
+then the noise in chunks of :data:`CHUNK` steps. A run's numbers therefore do
+not depend on which other runs share its batch: a batch of B runs equals B
+single runs with the same seeds.
+
+Two backends compute the same thing: ``"numba"`` (default; the fused kernel in
+:mod:`aes_ros.kernel`, runs spread over the cores) and ``"numpy"`` (the plain
+reference path built from :mod:`aes_ros.model` and :mod:`aes_ros.metrics`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+from tqdm import tqdm
+
+from aes_ros import formations, metrics
+from aes_ros.kernel import PARAM_ORDER, advance
+from aes_ros.model import (
+    Gains,
+    Noise,
+    SwarmCommand,
+    clip_commands,
+    draw_noise,
+    motion_commands,
+    total_forces,
+    unicycle_step,
+)
+from aes_ros.scenario import Scenario
+
+#: Noise is drawn per run in chunks of this many steps (part of what a seed means).
+CHUNK = 32
+
+METRIC_NAMES = ("alignment", "heading_order", "total_force", "centroid_x", "centroid_y")
+
+
+@dataclass
+class SimResult:
+    """Output of :func:`simulate`.
+
+    times : (T+1,) [s], the sampled instants 0, Δt, …, T·Δt.
+    metrics : (B, T+1, 5) alignment ψ (E8), heading order (E7), total force F (E9),
+        centroid x, y [m] at each instant (noise-free force).
+    positions : (B, T+1, N, 2) [m] and headings : (B, T+1, N) [rad], or None when
+        not recorded.
+    neighbors, rest_lengths : the sheet, (N, K).
+    """
+
+    times: np.ndarray
+    metrics: np.ndarray
+    positions: np.ndarray | None
+    headings: np.ndarray | None
+    neighbors: np.ndarray
+    rest_lengths: np.ndarray
+
+    def metric(self, name: str) -> np.ndarray:
+        """One metric, (B, T+1)."""
+        return self.metrics[..., METRIC_NAMES.index(name)]
+
+    @property
+    def centroid(self) -> np.ndarray:
+        """Centroid path (B, T+1, 2) [m]."""
+        return self.metrics[..., 3:5]
+
+
+def initial_states(
+    nominal: np.ndarray, spacing: float, perturbation: float, rngs: Sequence[np.random.Generator]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Perturbed starts for every run: positions (B, N, 2), headings (B, N)."""
+    starts = [formations.perturbed_start(nominal, spacing, perturbation, r) for r in rngs]
+    return np.stack([p for p, _ in starts]), np.stack([h for _, h in starts])
+
+
+def simulate(
+    scenario: Scenario,
+    seeds: Sequence[int] | int = 0,
+    *,
+    noise: bool = True,
+    record: bool = True,
+    backend: str = "numba",
+    progress: bool = False,
+    gains: Sequence[Gains] | None = None,
+    initial: tuple[np.ndarray, np.ndarray] | None = None,
+) -> SimResult:
+    """Simulate B runs of a scenario.
+
+    Parameters
+    ----------
+    scenario : formation, gains, command, Δt and duration.
+    seeds : one seed per run (B = len(seeds)), or an int for a single run.
+    noise : False switches both noise terms off (the initial state is still drawn).
+    record : keep every step's positions and headings (memory B·T·N·3 floats).
+    backend : "numba" (fused kernel) or "numpy" (reference path).
+    progress : show a tqdm bar over the steps.
+    gains : optional per-run gains (len B), e.g. one TCACS candidate per run;
+        defaults to the scenario's gains for every run. Runs with equal gains
+        are computed together.
+    initial : optional (positions (B, N, 2), headings (B, N)) replacing the
+        random start (the generators still draw it, so noise streams are unchanged).
+    """
+    seeds = [seeds] if isinstance(seeds, int | np.integer) else list(seeds)
+    rngs = [np.random.default_rng(s) for s in seeds]
+    nominal, neighbors, rest = scenario.sheet()
+    pos, head = initial_states(nominal, scenario.spacing, scenario.perturbation, rngs)
+    if initial is not None:
+        pos = np.array(initial[0], dtype=float).reshape(pos.shape)
+        head = np.array(initial[1], dtype=float).reshape(head.shape)
+    B, N = head.shape
+    T = scenario.n_steps
+    run_gains = list(gains) if gains is not None else [scenario.gains] * B
+    if len(run_gains) != B:
+        raise ValueError(f"gains: need one per run ({B}), got {len(run_gains)}")
+
+    out_metrics = np.empty((B, T + 1, 5))
+    pos_hist = np.empty((B, T + 1, N, 2)) if record else None
+    head_hist = np.empty((B, T + 1, N)) if record else None
+    stepper = _NumbaStepper if backend == "numba" else _NumpyStepper
+    if backend not in ("numba", "numpy"):
+        raise ValueError(f"backend: {backend!r} is not allowed; use 'numba' or 'numpy'")
+    groups = _group_by_gains(run_gains)
+    bar = tqdm(total=T, unit="step", disable=not progress, leave=False)
+    for idx, g in groups:
+        sim = stepper(scenario, g, neighbors, rest, noise, record)
+        chunks = _NoiseChunks([rngs[i] for i in idx], N, noise)
+        p, h = pos[idx], head[idx]
+        for start in range(0, T, CHUNK):
+            n = min(CHUNK, T - start)
+            m, ph, hh = sim.advance(p, h, *chunks.next(), n)
+            out_metrics[idx, start : start + n] = m
+            if record:
+                pos_hist[idx, start : start + n] = ph
+                head_hist[idx, start : start + n] = hh
+            if len(groups) == 1:
+                bar.update(n)
+        out_metrics[idx, T] = _final_metrics(p, h, neighbors, rest, g, scenario.command)
+        if record:
+            pos_hist[idx, T], head_hist[idx, T] = p, h
+    bar.close()
+    times = np.arange(T + 1) * scenario.dt
+    return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest)
+
+
+def _group_by_gains(run_gains: list[Gains]) -> list[tuple[np.ndarray, Gains]]:
+    order: dict[Gains, list[int]] = {}
+    for i, g in enumerate(run_gains):
+        order.setdefault(g, []).append(i)
+    return [(np.array(ix), g) for g, ix in order.items()]
+
+
+_POOL = ThreadPoolExecutor(max_workers=2)
+
+
+class _NoiseChunks:
+    """Noise of every run, CHUNK steps at a time, into reused (B, CHUNK, N) buffers.
+
+    Drawn on two threads (numpy releases the GIL while filling); each run's
+    stream depends only on its own generator, so batching never changes a run.
+    """
+
+    def __init__(self, rngs: list[np.random.Generator], n_robots: int, noise: bool) -> None:
+        shape = (len(rngs), CHUNK, n_robots)
+        self.rngs, self.noise = rngs, noise
+        self.buffers = (np.zeros(shape), np.zeros(shape), np.zeros(shape))
+
+    def next(self) -> Noise:
+        """(xi_x, xi_y, xi_theta), each (B, CHUNK, N), for the next CHUNK steps."""
+        if self.noise:
+            half = len(self.rngs) // 2
+            if half < 8:
+                self._fill(0, len(self.rngs))
+            else:
+                list(_POOL.map(lambda a: self._fill(*a), [(0, half), (half, len(self.rngs))]))
+        return self.buffers
+
+    def _fill(self, lo: int, hi: int) -> None:
+        for b in range(lo, hi):
+            draw_noise(
+                self.rngs[b],
+                (CHUNK, self.buffers[0].shape[2]),
+                out=tuple(buf[b] for buf in self.buffers),
+            )
+
+
+def _final_metrics(
+    positions: np.ndarray,
+    headings: np.ndarray,
+    neighbors: np.ndarray,
+    rest: np.ndarray,
+    gains: Gains,
+    command: SwarmCommand,
+) -> np.ndarray:
+    forces = total_forces(positions, neighbors, rest, gains, command)
+    return np.concatenate(
+        [
+            np.stack(
+                [
+                    metrics.alignment_order(forces, headings),
+                    metrics.heading_order(headings),
+                    metrics.total_force(forces),
+                ],
+                axis=-1,
+            ),
+            positions.mean(axis=-2),
+        ],
+        axis=-1,
+    )
+
+
+class _NumpyStepper:
+    """Reference path: the model's functions, vectorised over (B, N)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        gains: Gains,
+        neighbors: np.ndarray,
+        rest: np.ndarray,
+        noise: bool,
+        record: bool,
+    ) -> None:
+        self.scenario, self.gains = scenario, gains
+        self.neighbors, self.rest = neighbors, rest
+        self.noise, self.record = noise, record
+
+    def advance(
+        self,
+        pos: np.ndarray,
+        head: np.ndarray,
+        xi_x: np.ndarray,
+        xi_y: np.ndarray,
+        xi_theta: np.ndarray,
+        n: int,
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        sc = self.scenario
+        m = np.empty((len(head), n, 5))
+        ph = np.empty((len(head), n, *pos.shape[1:])) if self.record else None
+        hh = np.empty((len(head), n, head.shape[1])) if self.record else None
+        for s in range(n):
+            m[:, s] = _final_metrics(pos, head, self.neighbors, self.rest, self.gains, sc.command)
+            if self.record:
+                ph[:, s], hh[:, s] = pos, head
+            forces = total_forces(pos, self.neighbors, self.rest, self.gains, sc.command)
+            noise = (xi_x[:, s], xi_y[:, s], xi_theta[:, s]) if self.noise else None
+            u, w = motion_commands(forces, head, self.gains, sc.dt, noise)
+            if sc.clip:
+                u, w = clip_commands(u, w, sc.max_linear_speed, sc.max_angular_speed)
+            pos[...], head[...] = unicycle_step(pos, head, u, w, sc.dt)
+        return m, ph, hh
+
+
+class _NumbaStepper:
+    """Fused kernel path (:func:`aes_ros.kernel.advance`)."""
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        gains: Gains,
+        neighbors: np.ndarray,
+        rest: np.ndarray,
+        noise: bool,
+        record: bool,
+    ) -> None:
+        cmd = scenario.command
+        center = cmd.center if cmd.center is not None else (0.0, 0.0)
+        values = {
+            **{f: getattr(gains, f) for f in ("alpha", "beta", "k", "v0", "w_l", "w_r")},
+            "d_r": gains.d_r,
+            "d_theta": gains.d_theta,
+            "dt": scenario.dt,
+            "dir_x": cmd.direction[0],
+            "dir_y": cmd.direction[1],
+            "omega": cmd.omega,
+            "center_x": center[0],
+            "center_y": center[1],
+            "use_centroid": float(cmd.center is None),
+            "noise": float(noise),
+            "clip": float(scenario.clip),
+            "max_linear_speed": scenario.max_linear_speed,
+            "max_angular_speed": scenario.max_angular_speed,
+        }
+        self.params = np.array([values[name] for name in PARAM_ORDER], dtype=float)
+        self.neighbors = np.ascontiguousarray(neighbors, dtype=np.int64)
+        self.rest = np.ascontiguousarray(rest, dtype=float)
+        self.record = record
+
+    def advance(
+        self,
+        pos: np.ndarray,
+        head: np.ndarray,
+        xi_x: np.ndarray,
+        xi_y: np.ndarray,
+        xi_theta: np.ndarray,
+        n: int,
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        B, N = head.shape
+        m = np.empty((B, CHUNK, 5))
+        ph = np.empty((B, CHUNK, N, 2)) if self.record else np.empty((0, 0, 0, 2))
+        hh = np.empty((B, CHUNK, N)) if self.record else np.empty((0, 0, 0))
+        advance(
+            pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh
+        )
+        if not self.record:
+            return m[:, :n], None, None
+        return m[:, :n], ph[:, :n], hh[:, :n]
