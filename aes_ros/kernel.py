@@ -42,7 +42,7 @@ def advance(
 
     positions : (B, N, 2) [m], updated. headings : (B, N) [rad], updated.
     neighbors : (N, K) int64, -1 padded at the end of each row. rest_lengths : (N, K) [m].
-    params : see PARAM_ORDER.
+    params : (B, P) per-run parameters, columns in PARAM_ORDER.
     noise_x, noise_y, normals : (B, C, N) noise for C >= n_steps steps: the
         sensing-noise unit vector ξ̂_r = (cos a, sin a) and ξ_θ.
     metrics : (B, C, 5) out: alignment, heading order, total force, centroid x, y
@@ -50,21 +50,22 @@ def advance(
     pos_hist : (B, C, N, 2) or (0, 0, 0, 2), head_hist : (B, C, N) or (0, 0, 0):
         the state before each step, when recording.
     """
-    alpha, beta, k, v0 = params[0], params[1], params[2], params[3]
-    w_l, w_r, d_r, d_theta, dt = params[4], params[5], params[6], params[7], params[8]
-    lin_x, lin_y = w_l * params[9], w_l * params[10]
-    rot = w_r * params[11]
-    use_centroid = params[14] != 0.0
-    noisy = params[15] != 0.0
-    clip = params[16] != 0.0
-    max_lin, max_ang = params[17], params[18]
-    amp_r = d_r / math.sqrt(dt)
-    amp_t = d_theta / math.sqrt(dt)
     B, N = headings.shape
     K = neighbors.shape[1]
     record = pos_hist.shape[0] > 0
     two_pi = 2.0 * math.pi
     for b in prange(B):
+        pb = params[b]
+        alpha, beta, k, v0 = pb[0], pb[1], pb[2], pb[3]
+        w_l, w_r, d_r, d_theta, dt = pb[4], pb[5], pb[6], pb[7], pb[8]
+        lin_x, lin_y = w_l * pb[9], w_l * pb[10]
+        rot = w_r * pb[11]
+        use_centroid = pb[14] != 0.0
+        noisy = pb[15] != 0.0
+        clip = pb[16] != 0.0
+        max_lin, max_ang = pb[17], pb[18]
+        amp_r = d_r / math.sqrt(dt)
+        amp_t = d_theta / math.sqrt(dt)
         new_pos = np.empty((N, 2))
         new_head = np.empty(N)
         pos = positions[b]
@@ -80,7 +81,7 @@ def advance(
             if use_centroid:
                 ox, oy = cx, cy
             else:
-                ox, oy = params[12], params[13]
+                ox, oy = pb[12], pb[13]
             psi = 0.0
             total = 0.0
             sum_c = 0.0

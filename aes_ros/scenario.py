@@ -67,6 +67,24 @@ class Scenario:
             raise ParameterError("formation_file: required when formation is 'csv'")
         return formations.from_csv(self.formation_file)
 
+    def with_robots(self, n: int) -> Scenario:
+        """The same scenario on a grid of ``n`` robots: rows x cols with rows the
+        largest divisor of n not above sqrt(n) (16 -> 4x4, 100 -> 10x10, 12 -> 3x4)."""
+        if n < 1:
+            raise ParameterError(f"num_robots: {n} is not allowed; need an integer >= 1")
+        rows = max(r for r in range(1, int(np.sqrt(n)) + 1) if n % r == 0)
+        return self.with_overrides({"formation": "grid", "rows": rows, "cols": n // rows})
+
+    def initial_state(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """Start of the run with this seed: positions (N, 2) [m], headings (N,) [rad].
+
+        Identical to the start of :func:`aes_ros.simulator.simulate` with the
+        same seed, so the ROS system and the offline simulator can begin alike.
+        """
+        return formations.perturbed_start(
+            self.nominal_positions(), self.spacing, self.perturbation, np.random.default_rng(seed)
+        )
+
     def sheet(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Nominal positions (N, 2), neighbours (N, K) and rest lengths (N, K)."""
         nominal = self.nominal_positions()

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from tqdm import tqdm
@@ -100,7 +100,7 @@ def simulate(
     progress : show a tqdm bar over the steps.
     gains : optional per-run gains (len B), e.g. one TCACS candidate per run;
         defaults to the scenario's gains for every run. Runs with equal gains
-        are computed together.
+        share one kernel call (the numpy backend groups runs with equal gains).
     initial : optional (positions (B, N, 2), headings (B, N)) replacing the
         random start (the generators still draw it, so noise streams are unchanged).
     """
@@ -120,13 +120,21 @@ def simulate(
     out_metrics = np.empty((B, T + 1, 5))
     pos_hist = np.empty((B, T + 1, N, 2)) if record else None
     head_hist = np.empty((B, T + 1, N)) if record else None
-    stepper = _NumbaStepper if backend == "numba" else _NumpyStepper
     if backend not in ("numba", "numpy"):
         raise ValueError(f"backend: {backend!r} is not allowed; use 'numba' or 'numpy'")
-    groups = _group_by_gains(run_gains)
-    bar = tqdm(total=T, unit="step", disable=not progress, leave=False)
-    for idx, g in groups:
-        sim = stepper(scenario, g, neighbors, rest, noise, record)
+    # The kernel takes per-run gains, so it runs the whole batch at once; the
+    # reference path runs one group of equal gains at a time.
+    if backend == "numba":
+        batches = [
+            (np.arange(B), _NumbaStepper(scenario, run_gains, neighbors, rest, noise, record))
+        ]
+    else:
+        batches = [
+            (idx, _NumpyStepper(scenario, g, neighbors, rest, noise, record))
+            for idx, g in _group_by_gains(run_gains)
+        ]
+    bar = tqdm(total=T * len(batches), unit="step", disable=not progress, leave=False)
+    for idx, sim in batches:
         chunks = _NoiseChunks([rngs[i] for i in idx], N, noise)
         p, h = pos[idx], head[idx]
         for start in range(0, T, CHUNK):
@@ -136,12 +144,15 @@ def simulate(
             if record:
                 pos_hist[idx, start : start + n] = ph
                 head_hist[idx, start : start + n] = hh
-            if len(groups) == 1:
-                bar.update(n)
-        out_metrics[idx, T] = _final_metrics(p, h, neighbors, rest, g, scenario.command)
-        if record:
-            pos_hist[idx, T], head_hist[idx, T] = p, h
+            bar.update(n)
+        pos[idx], head[idx] = p, h
     bar.close()
+    for idx, g in _group_by_gains(run_gains):
+        out_metrics[idx, T] = _final_metrics(
+            pos[idx], head[idx], neighbors, rest, g, scenario.command
+        )
+    if record:
+        pos_hist[:, T], head_hist[:, T] = pos, head
     times = np.arange(T + 1) * scenario.dt
     return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest)
 
@@ -260,7 +271,7 @@ class _NumbaStepper:
     def __init__(
         self,
         scenario: Scenario,
-        gains: Gains,
+        run_gains: list[Gains],
         neighbors: np.ndarray,
         rest: np.ndarray,
         noise: bool,
@@ -268,10 +279,7 @@ class _NumbaStepper:
     ) -> None:
         cmd = scenario.command
         center = cmd.center if cmd.center is not None else (0.0, 0.0)
-        values = {
-            **{f: getattr(gains, f) for f in ("alpha", "beta", "k", "v0", "w_l", "w_r")},
-            "d_r": gains.d_r,
-            "d_theta": gains.d_theta,
+        shared = {
             "dt": scenario.dt,
             "dir_x": cmd.direction[0],
             "dir_y": cmd.direction[1],
@@ -284,7 +292,10 @@ class _NumbaStepper:
             "max_linear_speed": scenario.max_linear_speed,
             "max_angular_speed": scenario.max_angular_speed,
         }
-        self.params = np.array([values[name] for name in PARAM_ORDER], dtype=float)
+        self.params = np.array(
+            [[{**shared, **asdict(g)}[name] for name in PARAM_ORDER] for g in run_gains],
+            dtype=float,
+        )
         self.neighbors = np.ascontiguousarray(neighbors, dtype=np.int64)
         self.rest = np.ascontiguousarray(rest, dtype=float)
         self.record = record
