@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from aes_ros.metrics import FORCE_EPS
+
 #: Layout of the ``params`` vector passed to :func:`advance`.
 PARAM_ORDER = (
     "alpha", "beta", "k", "v0", "w_l", "w_r", "d_r", "d_theta", "dt",
@@ -66,6 +68,11 @@ def advance(
         max_lin, max_ang = pb[17], pb[18]
         amp_r = d_r / math.sqrt(dt)
         amp_t = d_theta / math.sqrt(dt)
+        stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
+        for i in range(N):
+            for slot in range(K):
+                rest = rest_lengths[i, slot]
+                stiffness[i, slot] = k / rest if rest > 0.0 else 0.0
         new_pos = np.empty((N, 2))
         new_head = np.empty(N)
         pos = positions[b]
@@ -98,9 +105,8 @@ def advance(
                     rx = pos[j, 0] - xi
                     ry = pos[j, 1] - yi
                     d = math.sqrt(rx * rx + ry * ry)
-                    rest = rest_lengths[i, slot]
-                    if d > 0.0 and rest > 0.0:
-                        scale = k / rest * (d - rest) / d
+                    if d > 0.0:
+                        scale = stiffness[i, slot] * (d - rest_lengths[i, slot]) / d
                         fx += scale * rx
                         fy += scale * ry
                 fx += lin_x
@@ -113,7 +119,7 @@ def advance(
                 s = math.sin(th)
                 fn = math.sqrt(fx * fx + fy * fy)
                 total += fn
-                psi += abs(fx * c + fy * s) / fn if fn > 0.0 else 1.0
+                psi += abs(fx * c + fy * s) / fn if fn > FORCE_EPS else 1.0
                 sum_c += c
                 sum_s += s
                 if record:
@@ -132,8 +138,10 @@ def advance(
                     w = min(max(w, -max_ang), max_ang)
                 new_pos[i, 0] = xi + u * dt * c
                 new_pos[i, 1] = yi + u * dt * s
-                th = th + w * dt + math.pi
-                new_head[i] = th - two_pi * math.floor(th / two_pi) - math.pi
+                th = th + w * dt
+                if th >= math.pi or th < -math.pi:  # rare: wrap to [-π, π)
+                    th = (th + math.pi) % two_pi - math.pi
+                new_head[i] = th
             metrics[b, step, 0] = psi / N
             metrics[b, step, 1] = math.sqrt(sum_c * sum_c + sum_s * sum_s) / N
             metrics[b, step, 2] = total

@@ -9,6 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
+#: Forces below this magnitude [N] count as zero in E8: a sheet exactly at its
+#: rest lengths has round-off forces (~1e-16) whose direction is meaningless.
+FORCE_EPS = 1e-9
+
 
 def heading_order(headings: np.ndarray) -> np.ndarray:
     """Ferrante's heading order (E7): ψ_heading = |(1/N) Σ_i n̂_i| in [0, 1]."""
@@ -18,11 +22,12 @@ def heading_order(headings: np.ndarray) -> np.ndarray:
 def alignment_order(forces: np.ndarray, headings: np.ndarray) -> np.ndarray:
     """Raoufi's force alignment (E8): ψ = (1/N) Σ_i |f_i·n̂_i| / |f_i|.
 
-    ψ_i = 1 when |f_i| = 0 (a robot with no force is not misaligned).
+    ψ_i = 1 when |f_i| <= FORCE_EPS (a robot with no force is not misaligned).
     """
     norm = np.sqrt(np.sum(forces * forces, axis=-1))
     along = np.abs(forces[..., 0] * np.cos(headings) + forces[..., 1] * np.sin(headings))
-    psi_i = np.where(norm > 0, along / np.where(norm > 0, norm, 1.0), 1.0)
+    has_force = norm > FORCE_EPS
+    psi_i = np.where(has_force, along / np.where(has_force, norm, 1.0), 1.0)
     return psi_i.mean(axis=-1)
 
 

@@ -1,0 +1,112 @@
+"""Offline simulator throughput: agent-steps per second, measured side by side.
+
+Compares, in one run on this machine, for the paper's 100-robot combined
+scenario:
+
+- ``loop``: a direct port, one Python loop over agents and neighbours per step
+  (what a straightforward translation of the equations looks like);
+- ``numpy``: the vectorised reference path (``backend="numpy"``);
+- ``numba``: the fused kernel (``backend="numba"``, the default), for batches
+  of 1, 10, 150 and 1500 Monte-Carlo runs.
+
+Prints a table and, as its last line,
+``RESULT agent_steps_per_s=<numba at the largest batch> speedup_vs_loop=<ratio>``.
+
+Usage: ``python bench/bench_sim.py [--batches 1 10 150 1500] [--duration 30]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+import numpy as np
+
+from aes_ros import scenario, simulator
+from aes_ros.scenario import Scenario
+
+
+def direct_port(sc: Scenario, seed: int, n_steps: int) -> None:
+    """The equations E1–E6 written as plain per-agent Python loops (the baseline)."""
+    rng = np.random.default_rng(seed)
+    _, neighbors, rest = sc.sheet()
+    pos, head = sc.initial_state(seed)
+    pos, head = pos.tolist(), head.tolist()
+    nbrs = [[(int(j), float(r)) for j, r in zip(row, rr, strict=True) if j >= 0]
+            for row, rr in zip(neighbors, rest, strict=True)]  # fmt: skip
+    g, (dx, dy), om = sc.gains, sc.direction, sc.omega
+    amp_r, amp_t = g.d_r / math.sqrt(sc.dt), g.d_theta / math.sqrt(sc.dt)
+    n = len(pos)
+    for _ in range(n_steps):
+        cx = sum(p[0] for p in pos) / n
+        cy = sum(p[1] for p in pos) / n
+        new_pos, new_head = [], []
+        for i in range(n):
+            xi, yi = pos[i]
+            fx, fy = g.w_l * dx, g.w_l * dy
+            for j, r in nbrs[i]:
+                rx, ry = pos[j][0] - xi, pos[j][1] - yi
+                d = math.hypot(rx, ry)
+                if d > 0:
+                    fx += g.k / r * (d - r) * rx / d
+                    fy += g.k / r * (d - r) * ry / d
+            fx += -g.w_r * om * (yi - cy)
+            fy += g.w_r * om * (xi - cx)
+            a = rng.uniform(-math.pi, math.pi)
+            fx += amp_r * math.cos(a)
+            fy += amp_r * math.sin(a)
+            c, s = math.cos(head[i]), math.sin(head[i])
+            u = g.v0 + g.alpha * (fx * c + fy * s)
+            w = g.beta * (-fx * s + fy * c) + amp_t * rng.standard_normal()
+            new_pos.append((xi + u * sc.dt * c, yi + u * sc.dt * s))
+            new_head.append(head[i] + w * sc.dt)
+        pos, head = new_pos, new_head
+
+
+def rate(fn, agent_steps: int, repeat: int = 1) -> float:
+    best = math.inf
+    for _ in range(repeat):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return agent_steps / best
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--batches", type=int, nargs="+", default=[1, 10, 150, 1500])
+    parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds per run")
+    args = parser.parse_args()
+    sc = scenario.load("combined", {"duration": args.duration})
+    n = len(sc.nominal_positions())
+    steps = sc.n_steps
+    simulator.simulate(sc, [0], record=False)  # compile / load the kernel cache
+
+    loop_steps = 40
+    loop = rate(lambda: direct_port(sc, 0, loop_steps), n * loop_steps)
+    rows = [("loop (direct port)", 1, loop)]
+    short = sc.with_overrides({"duration": 5.0})
+    for b in (1, 10, 150):
+        if b in args.batches:
+            seeds = list(range(b))
+            r = rate(
+                lambda seeds=seeds: simulator.simulate(short, seeds, record=False, backend="numpy"),
+                b * n * short.n_steps,
+            )
+            rows.append(("numpy (vectorised)", b, r))
+    for b in args.batches:
+        r = rate(lambda b=b: simulator.simulate(sc, list(range(b)), record=False),
+                 b * n * steps, repeat=2 if b < 1500 else 1)  # fmt: skip
+        rows.append(("numba (fused kernel)", b, r))
+
+    print(f"100-robot combined scenario, {steps} steps/run for numba; agent-steps per second")
+    print(f"{'implementation':<22}{'runs B':>8}{'agent-steps/s':>16}{'vs loop':>10}")
+    for name, b, r in rows:
+        print(f"{name:<22}{b:>8}{r:>16.3g}{r / loop:>10.0f}x")
+    best = rows[-1][2]
+    print(f"RESULT agent_steps_per_s={best:.3g} speedup_vs_loop={best / loop:.0f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,106 @@
+"""``aes-swarm simulate`` and ``params`` as a user runs them: outputs, and clear errors."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from aes_ros import scenario
+from aes_ros.params import PARAMS
+
+
+def aes_swarm(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "aes_ros.cli", *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def test_simulate_writes_every_output(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = aes_swarm(
+        "simulate", "--setup", "linear", "--set", "rows=4", "--set", "cols=4",
+        "--duration", "5", "--runs", "2", "--seed", "3", "--out", str(out),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    summary = proc.stdout.strip().splitlines()[-1]
+    assert summary.startswith("linear: N=16 runs=2")
+    with open(out / "metrics.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == [
+        "t", "alignment", "heading_order", "total_force", "centroid_x", "centroid_y",
+        "angular_velocity",
+    ]  # fmt: skip
+    assert len(rows) == 101 and float(rows[-1]["t"]) == pytest.approx(5.0)
+    assert float(rows[-1]["centroid_x"]) < float(rows[0]["centroid_x"])  # moving west
+    traj = np.load(out / "trajectory.npz")
+    assert traj["positions"].shape == (2, 101, 16, 2)
+    assert traj["headings"].shape == (2, 101, 16)
+    for png in ("snapshots.png", "metrics.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scenario_file_and_overrides_are_applied(tmp_path: Path) -> None:
+    text = Path(scenario.__file__).with_name("scenarios") / "linear.yaml"
+    custom = tmp_path / "north.yaml"
+    custom.write_text(text.read_text().replace("direction: [-1.0, 0.0]", "direction: [0.0, 1.0]"))
+    out = tmp_path / "north"
+    proc = aes_swarm(
+        "simulate", "--scenario", str(custom), "--set", "rows=3", "--set", "cols=3",
+        "--duration", "10", "--out", str(out),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    c = np.loadtxt(out / "metrics.csv", delimiter=",", skiprows=1, usecols=(4, 5))
+    assert c[-1, 1] - c[0, 1] > 0.5  # moved north
+    assert abs(c[-1, 0] - c[0, 0]) < 0.2
+
+
+@pytest.mark.parametrize(
+    ("args", "field", "allowed"),
+    [
+        (["--setup", "spiral"], "--setup", "linear, rotation, combined"),
+        (["--set", "spacing=-0.2"], "spacing", "[0.01, 100]"),
+        (["--set", "alpha=fast"], "alpha", "a number"),
+        (["--set", "colour=red"], "colour", "allowed:"),
+        (["--set", "alpha"], "--set", "name=value"),
+        (["--dt", "5"], "dt", "[0.0001, 1]"),
+    ],
+)
+def test_bad_input_exits_2_naming_the_field(
+    tmp_path: Path, args: list[str], field: str, allowed: str
+) -> None:
+    proc = aes_swarm("simulate", *args, "--out", str(tmp_path / "x"))
+    assert proc.returncode == 2
+    assert field in proc.stderr and allowed in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("alpha: [1, 2\n", "not valid YAML"),
+        ("speed_of_light: 3\n", "unknown parameter 'speed_of_light'"),
+        ("rows: 2.5\n", "rows"),
+        ("- alpha\n", "expected a mapping"),
+    ],
+)
+def test_bad_scenario_file_exits_2(tmp_path: Path, content: str, message: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(content)
+    proc = aes_swarm("simulate", "--scenario", str(path), "--out", str(tmp_path / "x"))
+    assert proc.returncode == 2
+    assert message in proc.stderr and "bad.yaml" in proc.stderr, proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_params_lists_every_parameter_with_its_range() -> None:
+    proc = aes_swarm("params")
+    assert proc.returncode == 0
+    for spec in PARAMS.values():
+        assert f"`{spec.name}`" in proc.stdout
+    assert "[0, 10]" in proc.stdout  # alpha's range
