@@ -13,7 +13,7 @@ import time
 from pathlib import Path
 
 from aes_ros import report, scenario, simulator
-from aes_ros.params import PARAMS
+from aes_ros.params import PARAMS, ParameterError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -70,16 +70,14 @@ def add_scenario_options(p: argparse.ArgumentParser) -> None:
 
 def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
     """The scenario named by --setup/--scenario with --set (and --dt/--duration) applied."""
-    overrides = scenario.parse_assignments(args.set)
-    for name in ("dt", "duration"):
-        if getattr(args, name, None) is not None:
-            overrides[name] = getattr(args, name)
     source = args.scenario if args.scenario is not None else args.setup
     if args.scenario is None and args.setup not in scenario.SETUPS:
-        raise scenario.ParameterError(
+        raise ParameterError(
             f"--setup: unknown setup {args.setup!r}; allowed: {', '.join(scenario.SETUPS)}"
         )
-    return scenario.load(source, overrides)
+    sc = scenario.load(source, scenario.parse_assignments(args.set))
+    options = {n: v for n in ("dt", "duration") if (v := getattr(args, n, None)) is not None}
+    return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
 
 
 def _positive_int(name: str):
@@ -100,8 +98,8 @@ def run(args: argparse.Namespace) -> int:
     seeds = [args.seed + b for b in range(args.runs)]
     n_robots = len(sc.nominal_positions())
     start = time.perf_counter()
-    # A progress bar is worth showing for runs longer than about a second.
-    long_run = args.runs * n_robots * sc.n_steps > 2e6
+    # A progress bar for runs longer than about a second (~2e7 agent-steps/s).
+    long_run = args.runs * n_robots * sc.n_steps > 2e7
     result = simulator.simulate(sc, seeds, noise=not args.no_noise, progress=long_run)
     elapsed = time.perf_counter() - start
     label = args.scenario.stem if args.scenario is not None else args.setup
