@@ -1,0 +1,630 @@
+"""TCACS, the tabu continuous ant colony system (SPEC §6; Karimi, Nobahari & Siarry 2010).
+
+A box-constrained global minimiser for n >= 2 variables. It keeps the best
+point found so far and samples each iteration's ants from a Gaussian centred
+on it, in a rotated frame fitted to a list of good ("promising") points, while
+refusing candidates inside small "tabu balls" around bad points. One
+iteration's ants are evaluated as one batch: ``f`` maps ``(k, n)`` candidates
+to ``(k,)`` costs, so the swarm simulator can run all ants (× all Monte-Carlo
+runs) in one kernel call.
+
+Public interface: :func:`minimize` (thin function) over :class:`TCACSSolver`
+(the state machine), plus the weight rule :func:`spread_weights` and a few
+standard test functions in :data:`BENCHMARKS` used by the validation bench
+and the tests.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import OptimizeResult
+
+WEIGHTINGS = ("roulette", "rank")
+
+#: Seeding: retries per seed point before the last draw is accepted anyway (the
+#: reference implementation has no cap and can hang).
+MAX_SEED_RETRIES = 10_000
+#: Sampling: consecutive tabu rejections after which the next candidate is accepted.
+MAX_TABU_REJECTIONS = 1000
+#: Sampling: Gaussian redraws to land in the box before the draw is clipped into it.
+MAX_BOX_RETRIES = 10_000
+#: Candidates drawn at once while sampling (only speeds the Python loop up).
+_DRAW_BLOCK = 64
+
+
+def minimize(
+    f: Callable[[np.ndarray], np.ndarray],
+    bounds: Sequence[tuple[float, float]],
+    *,
+    n_ants: int = 15,
+    weighting: str = "roulette",
+    gamma: float = 0.5,
+    m: float = 2,
+    max_evals: int = 300,
+    tol: float = 1e-4,
+    seed: int | np.random.Generator | None = None,
+    callback: Callable[[OptimizeResult], bool | None] | None = None,
+) -> OptimizeResult:
+    """Minimise ``f`` over a box with TCACS (SPEC §6).
+
+    Parameters
+    ----------
+    f : callable
+        Batched objective: ``f(X)`` with ``X`` of shape ``(k, n)`` returns the
+        ``(k,)`` costs. Each iteration's ants are passed in one call. NaN
+        costs are treated as +inf (worst possible).
+    bounds : sequence of (low, high)
+        The box [a, b]; n = len(bounds) >= 2 and low < high for every variable.
+    n_ants : int
+        Ants per iteration; also the sizes P and T of the promising and tabu lists.
+    weighting : {"roulette", "rank"}
+        How the promising points weigh in the spread σ (SPEC §6 step 6).
+    gamma : float in [0, 1]
+        Share of the cost term in the weights (the rest is the distance term).
+    m : float >= 0
+        The "PCA factor": axes are picked with probability ∝ ‖c‖^(2m).
+    max_evals : int >= n_ants
+        Budget; the run has round(max_evals / n_ants) iterations, so ``nfev``
+        can exceed ``max_evals`` by up to n_ants / 2 (1000 evaluations with 15
+        ants gives 67 iterations, 1005 evaluations).
+    tol : float >= 0
+        Spatial convergence radius: stop as soon as every promising point lies
+        within ``tol`` of the best point.
+    seed : None, int or numpy.random.Generator
+        Source of all randomness; the same seed gives the same run.
+    callback : callable, optional
+        ``callback(intermediate_result)`` after every iteration, with ``x``,
+        ``fun``, ``nit`` and ``nfev``; returning True stops the run.
+
+    Returns
+    -------
+    OptimizeResult
+        ``x`` (best point), ``fun`` (its cost), ``nfev`` (candidates
+        evaluated, not calls of ``f``), ``nit`` (iterations), ``success``,
+        ``status`` (0: budget used, 1: converged within ``tol``, 2: stopped by
+        the callback), ``message``, and the history of every evaluation in
+        order: ``history_x`` (nfev, n), ``history_fun`` (nfev,) and
+        ``history_nit`` (nfev,), the iteration of each evaluation.
+
+    Raises
+    ------
+    ValueError
+        Naming the argument: bad bounds (empty, n = 1, reversed or not
+        finite), ``max_evals < n_ants``, unknown ``weighting``, ``gamma``
+        outside [0, 1], negative ``m`` or ``tol``, ``n_ants < 2``, or ``f``
+        returning the wrong shape.
+
+    Notes
+    -----
+    The algorithm follows SPEC §6 step by step (the authors' reference
+    implementation): two seeding iterations of uniform points kept at least
+    s₀ = (0.7·Π(b−a)/n_ants)^(1/n) apart (including from the buffer's
+    not-yet-overwritten slots, i.e. from the origin in iteration 1); then
+    Gaussian sampling x = x_best + Rᵀ(σ ⊙ z) inside the box and outside the
+    tabu balls of radius r_tabu; the stable-sorted pool (ants, tabu,
+    promising) split into the P best (promising) and, among the rest within
+    3σ_d of x_best on every original axis d, the T worst (tabu); a frame R
+    built from the centred promising points with probability ∝ ‖c‖^(2m) and
+    Gram–Schmidt deflation; σ_d² = Σ_k W_k (z_dk − z*_d)².
+
+    Deliberate deviations, each only where the reference is undefined or can hang:
+
+    * Seeding retries are capped at ``MAX_SEED_RETRIES`` (then the last draw is
+      accepted); the reference has no cap and can hang on a box too small for
+      n_ants points s₀ apart.
+    * The box redraw is capped at ``MAX_BOX_RETRIES``, after which the draw is
+      clipped into the box; the reference loops forever if σ is huge and the
+      best point sits in a corner.
+    * Centred promising points of (numerically) zero length are never picked as
+      an axis (their direction is undefined; with m = 0 the reference could pick
+      them and produce NaN). If all are zero (every promising point identical)
+      the remaining axes are the standard basis vectors deflated in turn.
+    * Costs are compared as given, except that NaN counts as +inf; in the
+      roulette weights a non-finite cost is replaced by the largest finite cost
+      of the list (so it gets cost weight 0 instead of making every weight NaN).
+    * Kept quirk (not a deviation): the 3σ filter compares the rotated-frame σ
+      with original coordinates, as the reference does.
+    * An iteration's ants are all drawn before any of them is evaluated (one
+      batch), so x_best is fixed during an iteration's sampling.
+
+    References
+    ----------
+    .. [1] A. Karimi, H. Nobahari, P. Siarry, "Continuous ant colony system and
+       tabu search algorithms hybridized for global minimization of continuous
+       multi-minima functions", Comput. Optim. Appl. 45 (2010) 639–661.
+    .. [2] M. Raoufi, A. E. Turgut, F. Arvin, "Self-organized collective motion
+       with a simulated real robot swarm", TAROS 2019 (TCACS tuning of α, β, k).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from aes_ros.tcacs import minimize
+    >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-5, 5), (-5, 5)],
+    ...                n_ants=10, weighting="rank", gamma=1.0, m=1,
+    ...                max_evals=2000, seed=1)
+    >>> bool(res.fun < 1e-6)
+    True
+    """
+    solver = TCACSSolver(
+        f,
+        bounds,
+        n_ants=n_ants,
+        weighting=weighting,
+        gamma=gamma,
+        m=m,
+        max_evals=max_evals,
+        tol=tol,
+        seed=seed,
+        callback=callback,
+    )
+    return solver.solve()
+
+
+def n_iterations(max_evals: int, n_ants: int) -> int:
+    """Iterations of a run: round(max_evals / n_ants), halves rounded up like the reference."""
+    return max(1, math.floor(max_evals / n_ants + 0.5))
+
+
+def default_options(n: int) -> dict:
+    """The reference's default options for dimension n (SPEC §6 validation table).
+
+    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: 15 ants, roulette, γ = 0.5, m = 2.
+    """
+    if n < 4:
+        return {"n_ants": 10, "weighting": "rank", "gamma": 1.0, "m": 1}
+    return {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+
+
+def spread_weights(
+    costs: np.ndarray, distances: np.ndarray, weighting: str = "roulette", gamma: float = 0.5
+) -> np.ndarray:
+    """Weights W_k of the P−1 promising points other than x* (SPEC §6 step 6).
+
+    Parameters
+    ----------
+    costs : (P−1,) y_k. distances : (P−1,) d_k, distance to x*.
+    weighting : "roulette": W ∝ γ·(y_max − y_k)/Σ(y_max − y) + (1−γ)·(d_k − d_min)/Σ(d − d_min),
+        each term uniform where its values are all equal;
+        "rank": W ∝ γ·cost score + (1−γ)·distance score, the cost score running
+        from P−1 (lowest cost) down to 1, the distance score from P−1
+        (farthest) down to 1 (ties broken by list order).
+    gamma : share of the cost term.
+
+    Returns
+    -------
+    (P−1,) weights summing to 1.
+    """
+    y = np.asarray(costs, dtype=float)
+    d = np.asarray(distances, dtype=float)
+    count = len(y)
+    if count == 0:
+        return np.empty(0)
+    if weighting == "roulette":
+        finite = np.isfinite(y)
+        y = np.where(finite, y, y[finite].max() if finite.any() else 0.0)
+        cost_term = _proportional(y.max() - y)
+        dist_term = _proportional(d - d.min())
+    elif weighting == "rank":
+        cost_term = np.empty(count)
+        cost_term[np.argsort(y, kind="stable")] = np.arange(count, 0, -1)
+        dist_term = np.empty(count)
+        dist_term[np.argsort(-d, kind="stable")] = np.arange(count, 0, -1)
+    else:
+        raise ValueError(f"weighting: {weighting!r} is not allowed; use one of {WEIGHTINGS}")
+    w = gamma * cost_term + (1.0 - gamma) * dist_term
+    total = w.sum()
+    return w / total if total > 0 else np.full(count, 1.0 / count)
+
+
+def _proportional(values: np.ndarray) -> np.ndarray:
+    """values / Σ values, or uniform when they are all equal (Σ = 0)."""
+    total = values.sum()
+    if not total > 0:
+        return np.full(len(values), 1.0 / len(values))
+    return values / total
+
+
+def fit_frame(points: np.ndarray, m: float, rng: np.random.Generator) -> np.ndarray:
+    """The rotation R (axes as rows) fitted to the promising points (SPEC §6 step 5).
+
+    Centre the points on their mean; for j = 1 … n−1 pick a centred point with
+    probability ∝ ‖c‖^(2m), take its direction as axis u_j and deflate every
+    centred point along it (Gram–Schmidt). The last axis is the unit vector
+    orthogonal to the others with components summing to a positive number.
+
+    points : (P, n). Returns an orthonormal (n, n) matrix.
+    """
+    points = np.asarray(points, dtype=float)
+    n = points.shape[1]
+    c = points - points.mean(axis=0)
+    scale = max(float(np.abs(c).max()), 1e-300)
+    axes: list[np.ndarray] = []
+    for _ in range(n - 1):
+        norms = np.linalg.norm(c, axis=1)
+        usable = norms > 1e-12 * scale
+        if usable.any():
+            p = np.where(usable, norms, 0.0) ** (2.0 * m) * usable
+            if not (np.isfinite(p).all() and p.sum() > 0):  # overflow/underflow of ‖c‖^(2m)
+                p = np.where(usable, norms / norms.max(), 0.0) ** (2.0 * m) * usable
+                if not p.sum() > 0:
+                    p = usable.astype(float)
+            pick = rng.choice(len(c), p=p / p.sum())
+            u = c[pick] / norms[pick]
+        else:  # every centred point is (numerically) zero: complete with basis vectors
+            u = _next_basis_vector(axes, n)
+        for a in axes:  # re-orthogonalise against round-off
+            u = u - (u @ a) * a
+        u = u / np.linalg.norm(u)
+        axes.append(u)
+        c = c - np.outer(c @ u, u)
+    last = np.linalg.svd(np.array(axes).reshape(-1, n), full_matrices=True)[2][-1]
+    if last.sum() < 0:
+        last = -last
+    return np.vstack([*axes, last])
+
+
+def _next_basis_vector(axes: list[np.ndarray], n: int) -> np.ndarray:
+    """The standard basis vector least covered by ``axes``, deflated against them."""
+    residuals = np.eye(n)
+    for a in axes:
+        residuals = residuals - np.outer(residuals @ a, a)
+    return residuals[int(np.argmax(np.linalg.norm(residuals, axis=1)))]
+
+
+class TCACSSolver:
+    """The TCACS state machine behind :func:`minimize` (same parameters).
+
+    State (SPEC §6): ``x_best``/``f_best``; ``sigma`` (one value per rotated
+    axis) and ``R`` (axes as rows); the promising and tabu lists
+    (``promising_x``/``promising_f``, ``tabu_x``/``tabu_f``); ``r_tabu``.
+    :meth:`solve` runs the whole optimisation; :meth:`sample` and
+    :meth:`update_lists` are the steps, exposed for tests.
+    """
+
+    def __init__(
+        self,
+        f: Callable[[np.ndarray], np.ndarray],
+        bounds: Sequence[tuple[float, float]],
+        *,
+        n_ants: int = 15,
+        weighting: str = "roulette",
+        gamma: float = 0.5,
+        m: float = 2,
+        max_evals: int = 300,
+        tol: float = 1e-4,
+        seed: int | np.random.Generator | None = None,
+        callback: Callable[[OptimizeResult], bool | None] | None = None,
+    ) -> None:
+        self.lower, self.upper = _check_bounds(bounds)
+        self.n = len(self.lower)
+        if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
+            raise ValueError(f"n_ants: {n_ants!r} is not allowed; need an integer >= 2")
+        if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
+            raise ValueError(f"max_evals: {max_evals!r} is not allowed; need an integer")
+        if max_evals < n_ants:
+            raise ValueError(
+                f"max_evals: {max_evals} is less than n_ants ({n_ants}); "
+                "need at least one iteration of ants"
+            )
+        if weighting not in WEIGHTINGS:
+            raise ValueError(f"weighting: {weighting!r} is not allowed; use one of {WEIGHTINGS}")
+        if not 0.0 <= gamma <= 1.0:
+            raise ValueError(f"gamma: {gamma!r} is not allowed; need a number in [0, 1]")
+        if not (m >= 0 and math.isfinite(m)):
+            raise ValueError(f"m: {m!r} is not allowed; need a finite number >= 0")
+        if not (tol >= 0 and math.isfinite(tol)):
+            raise ValueError(f"tol: {tol!r} is not allowed; need a finite number >= 0")
+        self.f, self.callback = f, callback
+        self.n_ants, self.weighting = int(n_ants), weighting
+        self.gamma, self.m, self.tol = float(gamma), float(m), float(tol)
+        self.max_evals = int(max_evals)
+        self.n_iterations = n_iterations(self.max_evals, self.n_ants)
+        self.rng = np.random.default_rng(seed)
+        width = self.upper - self.lower
+        #: Minimum distance between seed points, s₀ = (0.7·Π(b−a)/n_ants)^(1/n).
+        self.s0 = (0.7 * float(np.prod(width)) / self.n_ants) ** (1.0 / self.n)
+        self.sigma = 4.0 * width
+        self.R = np.eye(self.n)
+        self.r_tabu = math.inf
+        self.x_best = np.full(self.n, np.nan)
+        self.f_best = math.inf
+        empty_x, empty_f = np.empty((0, self.n)), np.empty(0)
+        self.promising_x, self.promising_f = empty_x, empty_f
+        self.tabu_x, self.tabu_f = empty_x, empty_f
+        self._seed_buffer = np.zeros((self.n_ants, self.n))
+        self._history: list[tuple[np.ndarray, np.ndarray, int]] = []
+        self.nfev = 0
+        self.nit = 0
+
+    # --- steps -------------------------------------------------------------
+    def seed_points(self) -> np.ndarray:
+        """One seeding iteration (SPEC §6 step 2): n_ants uniform points, s₀ apart.
+
+        A draw closer than s₀ to any slot of the buffer (earlier points of this
+        iteration, and the slots not yet overwritten: the origin in iteration 1,
+        the previous seeds in iteration 2) is redrawn, at most MAX_SEED_RETRIES
+        times. Returns (n_ants, n); the buffer then holds these points.
+        """
+        buf = self._seed_buffer
+        for i in range(self.n_ants):
+            for _ in range(MAX_SEED_RETRIES):
+                x = self.rng.uniform(self.lower, self.upper)
+                if np.min(np.linalg.norm(buf - x, axis=1)) >= self.s0:
+                    break
+            buf[i] = x
+        return buf.copy()
+
+    def sample(self) -> np.ndarray:
+        """Draw one iteration's ants around x_best (SPEC §6 step 3). Returns (n_ants, n).
+
+        x = x_best + Rᵀ(σ ⊙ z), z ~ N(0, I), redrawn until inside the box; a
+        candidate within r_tabu of a tabu point is rejected unless more than
+        MAX_TABU_REJECTIONS candidates in a row were rejected.
+        """
+        ants = np.empty((self.n_ants, self.n))
+        scaled_axes = self.sigma[:, None] * self.R  # rows σ_d u_d, so z @ this = Rᵀ(σ ⊙ z)
+        check_tabu = len(self.tabu_x) > 0 and math.isfinite(self.r_tabu)
+        i, rejections, box_misses = 0, 0, 0
+        while i < self.n_ants:
+            block = self.x_best + self.rng.standard_normal((_DRAW_BLOCK, self.n)) @ scaled_axes
+            inside = np.all((block >= self.lower) & (block <= self.upper), axis=1)
+            if check_tabu:
+                dist = np.linalg.norm(block[:, None, :] - self.tabu_x[None], axis=2)
+                tabu = np.any(dist < self.r_tabu, axis=1)
+            else:
+                tabu = np.zeros(_DRAW_BLOCK, dtype=bool)
+            for x, ok, bad in zip(block, inside, tabu, strict=True):
+                if not ok:
+                    box_misses += 1
+                    if box_misses < MAX_BOX_RETRIES:
+                        continue
+                    x = np.clip(x, self.lower, self.upper)  # deviation: capped redraws
+                    bad = check_tabu and bool(
+                        np.any(np.linalg.norm(self.tabu_x - x, axis=1) < self.r_tabu)
+                    )
+                box_misses = 0
+                if bad and rejections <= MAX_TABU_REJECTIONS:
+                    rejections += 1
+                    continue
+                ants[i] = x
+                i, rejections = i + 1, 0
+                if i == self.n_ants:
+                    break
+        return ants
+
+    def evaluate(self, X: np.ndarray) -> np.ndarray:
+        """Evaluate one batch, record it, update x_best (strictly lower cost only)."""
+        y = np.asarray(self.f(X), dtype=float)
+        if y.shape != (len(X),):
+            raise ValueError(f"f: returned shape {y.shape}; expected ({len(X)},) for {X.shape} X")
+        y = np.where(np.isnan(y), np.inf, y)
+        self.nfev += len(X)
+        self._history.append((X.copy(), y.copy(), self.nit + 1))
+        best = int(np.argmin(y))  # first of equal minima
+        if y[best] < self.f_best:
+            self.x_best, self.f_best = X[best].copy(), float(y[best])
+        return y
+
+    def update_lists(self, X: np.ndarray, y: np.ndarray, sigma_used: np.ndarray) -> None:
+        """Promising and tabu lists and r_tabu from this iteration's ants (SPEC §6 step 4).
+
+        ``sigma_used`` is σ as used for this iteration's sampling; x_best must
+        already include this iteration's update.
+        """
+        pool_x = np.vstack([X, self.tabu_x, self.promising_x])
+        pool_f = np.concatenate([y, self.tabu_f, self.promising_f])
+        order = np.argsort(pool_f, kind="stable")
+        P = T = self.n_ants
+        best, rest = order[:P], order[P:]
+        near = np.all(np.abs(pool_x[rest] - self.x_best) < 3.0 * sigma_used, axis=1)
+        tabu = rest[near][-T:] if T > 0 else rest[:0]
+        self.promising_x, self.promising_f = pool_x[best], pool_f[best]
+        self.tabu_x, self.tabu_f = pool_x[tabu], pool_f[tabu]
+        if len(tabu):
+            d = np.linalg.norm(self.promising_x[:, None] - self.tabu_x[None], axis=2)
+            self.r_tabu = 0.25 * float(d.min())
+        else:
+            self.r_tabu = math.inf
+
+    def update_frame(self) -> None:
+        """Rotation R and spread σ from the promising list (SPEC §6 steps 5, 6)."""
+        self.R = fit_frame(self.promising_x, self.m, self.rng)
+        z = self.promising_x @ self.R.T
+        x_star = self.promising_x[0]
+        dist = np.linalg.norm(self.promising_x[1:] - x_star, axis=1)
+        W = spread_weights(self.promising_f[1:], dist, self.weighting, self.gamma)
+        self.sigma = np.sqrt(W @ (z[1:] - z[0]) ** 2)
+
+    def converged(self) -> bool:
+        """Spatial stop rule (SPEC §6 step 7): every promising point within tol of x_best."""
+        if len(self.promising_x) == 0:
+            return False
+        return bool(np.all(np.linalg.norm(self.promising_x - self.x_best, axis=1) <= self.tol))
+
+    # --- driver ------------------------------------------------------------
+    def solve(self) -> OptimizeResult:
+        """Run all iterations (or until convergence or the callback says stop)."""
+        status = 0
+        seeds: list[tuple[np.ndarray, np.ndarray]] = []
+        while self.nit < self.n_iterations:
+            sigma_used = self.sigma.copy()
+            X = self.seed_points() if self.nit < 2 else self.sample()
+            y = self.evaluate(X)
+            self.nit += 1
+            if self.nit <= 2:
+                seeds.append((X, y))
+            if self.nit >= 2:
+                if self.nit == 2:  # the 2·n_ants seeds are the first pool
+                    X = np.vstack([s[0] for s in seeds])
+                    y = np.concatenate([s[1] for s in seeds])
+                self.update_lists(X, y, sigma_used)
+                if self.converged():
+                    status = 1
+                elif self.nit < self.n_iterations:
+                    self.update_frame()
+            if self.callback is not None and self.callback(self._intermediate()):
+                status = 2 if status == 0 else status
+            if status:
+                break
+        return self._result(status)
+
+    def _intermediate(self) -> OptimizeResult:
+        return OptimizeResult(x=self.x_best.copy(), fun=self.f_best, nit=self.nit, nfev=self.nfev)
+
+    def _result(self, status: int) -> OptimizeResult:
+        messages = {
+            0: f"used the budget of {self.n_iterations} iterations",
+            1: f"converged: every promising point within tol = {self.tol:g} of the best",
+            2: "stopped by the callback",
+        }
+        if self._history:
+            hx = np.vstack([h[0] for h in self._history])
+            hf = np.concatenate([h[1] for h in self._history])
+            hn = np.concatenate([np.full(len(h[1]), h[2]) for h in self._history])
+        else:
+            hx, hf, hn = np.empty((0, self.n)), np.empty(0), np.empty(0, dtype=int)
+        return OptimizeResult(
+            x=self.x_best.copy(),
+            fun=self.f_best,
+            nfev=self.nfev,
+            nit=self.nit,
+            success=status in (0, 1),
+            status=status,
+            message=messages[status],
+            history_x=hx,
+            history_fun=hf,
+            history_nit=hn,
+        )
+
+
+def _check_bounds(bounds: Sequence[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
+    try:
+        b = np.asarray(bounds, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"bounds: {bounds!r} is not a sequence of (low, high) pairs") from None
+    if b.size == 0:
+        raise ValueError("bounds: empty; need one (low, high) pair per variable")
+    if b.ndim != 2 or b.shape[1] != 2:
+        raise ValueError(f"bounds: need a sequence of (low, high) pairs; got shape {b.shape}")
+    if len(b) < 2:
+        raise ValueError("bounds: TCACS needs n >= 2 variables; got n = 1")
+    if not np.isfinite(b).all():
+        raise ValueError("bounds: every low and high must be finite")
+    bad = np.flatnonzero(b[:, 0] >= b[:, 1])
+    if len(bad):
+        i = int(bad[0])
+        raise ValueError(
+            f"bounds: variable {i} has low {b[i, 0]:g} >= high {b[i, 1]:g} (reversed or empty)"
+        )
+    return b[:, 0].copy(), b[:, 1].copy()
+
+
+# --- standard test functions (vectorised: X (k, n) -> (k,)) ------------------
+
+
+def branin(X: np.ndarray) -> np.ndarray:
+    """Branin RCOS on [−5, 10] × [0, 15]; f* = 5/(4π) ≈ 0.397887 (three minima)."""
+    x, y = X[:, 0], X[:, 1]
+    b, c = 5.1 / (4 * np.pi**2), 5 / np.pi
+    return (y - b * x**2 + c * x - 6) ** 2 + 10 * (1 - 1 / (8 * np.pi)) * np.cos(x) + 10
+
+
+def goldstein_price(X: np.ndarray) -> np.ndarray:
+    """Goldstein–Price on [−2, 2]²; f* = 3 at (0, −1)."""
+    x, y = X[:, 0], X[:, 1]
+    a = 1 + (x + y + 1) ** 2 * (19 - 14 * x + 3 * x**2 - 14 * y + 6 * x * y + 3 * y**2)
+    b = 30 + (2 * x - 3 * y) ** 2 * (18 - 32 * x + 12 * x**2 + 48 * y - 36 * x * y + 27 * y**2)
+    return a * b
+
+
+def rosenbrock(X: np.ndarray) -> np.ndarray:
+    """Rosenbrock; f* = 0 at (1, …, 1)."""
+    return np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
+
+
+def sphere(X: np.ndarray) -> np.ndarray:
+    """De Jong's sphere; f* = 0 at the origin."""
+    return np.sum(X**2, axis=1)
+
+
+_H3_A = np.array([[3.0, 10, 30], [0.1, 10, 35], [3.0, 10, 30], [0.1, 10, 35]])
+_H3_P = 1e-4 * np.array(
+    [[3689, 1170, 2673], [4699, 4387, 7470], [1091, 8732, 5547], [381, 5743, 8828]]
+)
+_H6_A = np.array(
+    [
+        [10, 3, 17, 3.5, 1.7, 8],
+        [0.05, 10, 17, 0.1, 8, 14],
+        [3, 3.5, 1.7, 10, 17, 8],
+        [17, 8, 0.05, 10, 0.1, 14],
+    ]
+)
+_H6_P = 1e-4 * np.array(
+    [
+        [1312, 1696, 5569, 124, 8283, 5886],
+        [2329, 4135, 8307, 3736, 1004, 9991],
+        [2348, 1451, 3522, 2883, 3047, 6650],
+        [4047, 8828, 8732, 5743, 1091, 381],
+    ]
+)
+_HC = np.array([1.0, 1.2, 3.0, 3.2])
+
+
+def _hartmann(X: np.ndarray, A: np.ndarray, P: np.ndarray) -> np.ndarray:
+    inner = np.sum(A[None] * (X[:, None, :] - P[None]) ** 2, axis=2)
+    return -np.sum(_HC * np.exp(-inner), axis=1)
+
+
+def hartmann3(X: np.ndarray) -> np.ndarray:
+    """Hartmann H3,4 on [0, 1]³; f* ≈ −3.86278."""
+    return _hartmann(X, _H3_A, _H3_P)
+
+
+def hartmann6(X: np.ndarray) -> np.ndarray:
+    """Hartmann H6,4 on [0, 1]⁶; f* ≈ −3.32237."""
+    return _hartmann(X, _H6_A, _H6_P)
+
+
+_SHEKEL_A = np.array([[4.0, 4, 4, 4], [1, 1, 1, 1], [8, 8, 8, 8], [6, 6, 6, 6], [3, 7, 3, 7]])
+_SHEKEL_C = np.array([0.1, 0.2, 0.2, 0.4, 0.4])
+
+
+def shekel5(X: np.ndarray) -> np.ndarray:
+    """Shekel S4,5 on [0, 10]⁴; f* ≈ −10.1532 at (4, 4, 4, 4)."""
+    sq = np.sum((X[:, None, :] - _SHEKEL_A[None]) ** 2, axis=2)
+    return -np.sum(1.0 / (sq + _SHEKEL_C), axis=1)
+
+
+@dataclass(frozen=True)
+class Benchmark:
+    """A test function with its box, optimum and the reference behaviour (SPEC §6)."""
+
+    name: str
+    f: Callable[[np.ndarray], np.ndarray]
+    bounds: tuple[tuple[float, float], ...]
+    f_star: float
+    ref_success: float | None = None  #: success rate of the authors' code, or None
+    ref_evals: float | None = None  #: its mean evaluations, or None
+
+    def success(self, fun: float) -> bool:
+        """|f − f*| < 1e-4·|f*| + 1e-6 (the reference's success criterion)."""
+        return abs(fun - self.f_star) < 1e-4 * abs(self.f_star) + 1e-6
+
+
+BENCHMARKS: dict[str, Benchmark] = {
+    b.name: b
+    for b in [
+        Benchmark("branin", branin, ((-5, 10), (0, 15)), 5 / (4 * np.pi), 1.00, 420),
+        Benchmark("goldstein_price", goldstein_price, ((-2, 2), (-2, 2)), 3.0, 0.97, 260),
+        Benchmark("rosenbrock2", rosenbrock, ((-5, 10), (-5, 10)), 0.0, 1.00, 670),
+        Benchmark("sphere3", sphere, ((-5.12, 5.12),) * 3, 0.0, 1.00, 390),
+        Benchmark("hartmann3", hartmann3, ((0, 1),) * 3, -3.862782147820756, 0.99, 550),
+        # Beyond the reference table: the n >= 4 defaults (15 ants, roulette, m = 2).
+        Benchmark("shekel5", shekel5, ((0, 10),) * 4, -10.1531996790582),
+        Benchmark("hartmann6", hartmann6, ((0, 1),) * 6, -3.322368011391339),
+    ]
+}
