@@ -203,10 +203,14 @@ def motion_commands(
 def clip_commands(
     u: np.ndarray, turn_rate: np.ndarray, max_linear_speed: float, max_angular_speed: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Clip commands to the robot's limits (SPEC §5), each axis independently."""
+    """Clip commands to the robot's limits (SPEC §5), each axis independently.
+
+    (``np.minimum(np.maximum(...))`` is ``np.clip`` without its dispatch overhead,
+    a third of the cost for the robot nodes' scalars.)
+    """
     return (
-        np.clip(u, -max_linear_speed, max_linear_speed),
-        np.clip(turn_rate, -max_angular_speed, max_angular_speed),
+        np.minimum(np.maximum(u, -max_linear_speed), max_linear_speed),
+        np.minimum(np.maximum(turn_rate, -max_angular_speed), max_angular_speed),
     )
 
 

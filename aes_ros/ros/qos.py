@@ -30,10 +30,46 @@ COMMAND = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+#: The robots' cmd_vel publishers: COMMAND, and the last 10 commands are kept for
+#: readers that ask for them (transient-local). Only the recorder does: it would
+#: otherwise miss the first commands of a robot published before discovery matched
+#: the two (tests/test_recording.py). Volatile readers (the bridge, a motor
+#: driver) match as before and never receive old commands.
+COMMAND_KEPT = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+#: The bridge's cmd_vel subscriptions: only the newest command matters to a motor.
+#: Publishers stay reliable (COMMAND; a best-effort reader matches them): with a
+#: reliable reader, one lost datagram holds back every later command of that robot
+#: until the writer's next heartbeat (3 s by default), so under packet loss the
+#: bridge would drive with stale commands (tests/test_multihost.py).
+LATEST_COMMAND = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.BEST_EFFORT,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
 #: /swarm/desired_velocity, /swarm/rotation_center, /swarm/alignment, … (supervisor → all)
 LATCHED = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+#: The supervisor's publishers of those topics. Same contract as LATCHED (a late
+#: reader of depth 1 still gets only the newest value), but the writer keeps its
+#: last 20 samples until acknowledged: with a history of 1 a sample is replaced by
+#: the next one before a reader that missed a datagram (a busy recorder) can ask for
+#: it again, and the bag would lack it (tests/test_recording.py).
+LATCHED_WRITER = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=20,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )

@@ -1,0 +1,97 @@
+"""``geometry_msgs/PoseArray`` in its wire format (CDR), straight from and to numpy.
+
+``/swarm/poses`` is the busiest message of the system: the bridge publishes all
+N poses every control step and every robot process reads them. Building N
+``Pose`` objects in Python, and rclpy converting them field by field, cost more
+than everything else the bridge does (py-spy, 100 robots at 50 Hz). The wire
+format is a fixed layout, so both ends can use numpy instead:
+:class:`PoseArrayEncoder` fills a preallocated buffer that ``Publisher.publish``
+sends as it is, and :func:`decode_pose_array` reads a message taken with
+``create_subscription(..., raw=True)``. The bytes are exactly those of
+``rclpy.serialization.serialize_message`` (tested), so every other subscriber
+(``ros2 topic echo``, bag recorders) sees an ordinary PoseArray.
+
+Layout (XCDR1 as Fast DDS writes it; alignment counts from the end of the
+4-byte encapsulation header): ``stamp.sec`` int32, ``stamp.nanosec`` uint32,
+``frame_id`` (uint32 length including the NUL, bytes, NUL), pad to 4, uint32
+pose count, pad to 8, then per pose 7 float64: position x, y, z and
+orientation x, y, z, w.
+"""
+
+from __future__ import annotations
+
+import struct
+
+import numpy as np
+
+from aes_ros.ros.conversions import BadMessageError, planar_poses
+
+#: Encapsulation header of little-endian plain CDR.
+CDR_LE = b"\x00\x01\x00\x00"
+#: float64 values per Pose: position (x, y, z), orientation (x, y, z, w).
+POSE_DOUBLES = 7
+_HEADER = 4
+
+
+def _align(offset: int, size: int) -> int:
+    return (offset + size - 1) // size * size
+
+
+class PoseArrayEncoder:
+    """Serialised PoseArrays of ``n`` planar poses in one reused buffer.
+
+    >>> enc = PoseArrayEncoder(2, "odom")
+    >>> data = enc.encode(3, 0, np.zeros((2, 2)), np.zeros(2))  # bytes for Publisher.publish
+    """
+
+    def __init__(self, n: int, frame_id: str = "odom") -> None:
+        name = frame_id.encode() + b"\0"
+        count_at = _align(12 + len(name), 4)
+        poses_at = _align(count_at + 4, 8) if n else count_at + 4
+        self._buf = bytearray(_HEADER + poses_at + 8 * POSE_DOUBLES * n)
+        self._buf[:_HEADER] = CDR_LE
+        struct.pack_into("<I", self._buf, _HEADER + 8, len(name))
+        self._buf[_HEADER + 12 : _HEADER + 12 + len(name)] = name
+        struct.pack_into("<I", self._buf, _HEADER + count_at, n)
+        #: (n, 7) view into the buffer: x, y, z, qx, qy, qz, qw of every pose.
+        self.poses = np.frombuffer(
+            self._buf, dtype="<f8", count=POSE_DOUBLES * n, offset=_HEADER + poses_at
+        ).reshape(n, POSE_DOUBLES)
+
+    def encode(self, sec: int, nanosec: int, positions: np.ndarray, headings: np.ndarray) -> bytes:
+        """The message for ``positions: (n, 2)`` [m] and ``headings: (n,)`` [rad] (z = 0)."""
+        struct.pack_into("<iI", self._buf, _HEADER, sec, nanosec)
+        half = 0.5 * np.asarray(headings)
+        self.poses[:, 0:2] = positions
+        self.poses[:, 5] = np.sin(half)
+        self.poses[:, 6] = np.cos(half)
+        return bytes(self._buf)
+
+
+def decode_pose_array(
+    data: bytes, expected: int | None = None
+) -> tuple[int, int, np.ndarray, np.ndarray]:
+    """(stamp sec, stamp nanosec, positions (N, 2) [m], headings (N,) [rad]) of a raw PoseArray.
+
+    Raises BadMessageError for a truncated or malformed message, a pose count other
+    than ``expected`` (if given), and for the values
+    :func:`aes_ros.ros.conversions.planar_poses` rejects (non-finite, out of range).
+    """
+    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise BadMessageError("PoseArray: not a CDR message")
+    order = "<" if data[1] == 1 else ">"
+    sec, nanosec, name_len = struct.unpack_from(order + "iII", data, _HEADER)
+    count_at = _align(12 + name_len, 4)
+    if _HEADER + count_at + 4 > len(data):
+        raise BadMessageError("PoseArray: truncated header")
+    (n,) = struct.unpack_from(order + "I", data, _HEADER + count_at)
+    if expected is not None and n != expected:
+        raise BadMessageError(f"PoseArray has {n} poses, expected {expected}")
+    poses_at = _align(count_at + 4, 8) if n else count_at + 4
+    if _HEADER + poses_at + 8 * POSE_DOUBLES * n > len(data):
+        raise BadMessageError(f"PoseArray: {n} poses announced, message too short")
+    values = np.frombuffer(
+        data, dtype=order + "f8", count=POSE_DOUBLES * n, offset=_HEADER + poses_at
+    ).reshape(n, POSE_DOUBLES)
+    xy, yaw = planar_poses(values[:, 0:2].astype(float), values[:, 3:7].astype(float))
+    return sec, nanosec, xy, yaw
