@@ -1,0 +1,496 @@
+"""The ``sim_bridge`` node: a pybullet world of Mona robots on ROS 2 (SPEC §7).
+
+Start it (headless, the combined scenario's 10 x 10 formation)::
+
+    aes-sim-bridge
+    aes-sim-bridge --ros-args -p scenario:=linear -p num_robots:=16 -p seed:=3 \
+        -p mode:=dynamic -p gui:=true
+    aes-sim-bridge --ros-args -p lockstep:=true -p real_time_factor:=0.0 -p clip:=false
+
+Every control period (1 / ``publish_rate`` of sim time) it steps the world with
+the robots' latest ``cmd_vel`` and publishes ``/clock``, ``/swarm/poses`` and
+``/mona_<i>/odom``. The world is stepped from a timer of the executor, not from
+a thread of its own.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseArray, Twist
+from nav_msgs.msg import Odometry
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+)
+from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_srvs.srv import SetBool, Trigger
+
+from aes_ros.params import ParameterError
+from aes_ros.ros.cdr import PoseArrayEncoder
+from aes_ros.ros.qos import LATEST_COMMAND, SENSOR
+from aes_ros.ros.spin import spin
+from aes_ros.scenario import load
+from sim_bridge.world import MODES, World
+
+#: Wall-clock time [s] after which a lockstep bridge still waiting for commands
+#: publishes the same state again (a pose message may have been lost).
+REPUBLISH_AFTER = 1.0
+
+#: At most this many cmd_vel latencies are kept between two /sim/stats calls.
+MAX_LATENCY_SAMPLES = 2_000_000
+
+#: /clock: reliable keep-last, which every /clock subscriber (rclpy's is best-effort) accepts.
+CLOCK_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE
+)
+
+
+def _float_param(description: str, low: float, high: float, read_only: bool = False):
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
+        read_only=read_only,
+    )
+
+
+class SimBridgeNode(Node):
+    """A pybullet world of N Mona robots behind ROS topics.
+
+    Parameters (ROS)
+    ----------------
+    scenario : str, default "combined"
+        Setup name (linear | rotation | combined) or scenario YAML path; gives the
+        formation and the robot limits. Read-only.
+    num_robots : int, default 0
+        0 = the scenario's formation; n > 0 = an n-robot grid
+        (``Scenario.with_robots``). Read-only.
+    seed : int, default 0
+        Initial state = ``Scenario.initial_state(seed)``, the offline simulator's
+        start with that seed. Read-only.
+    mode : str, default "kinematic"
+        ``kinematic`` (body follows cmd_vel exactly) or ``dynamic`` (wheel motors,
+        friction, collisions). Read-only.
+    physics_rate : float [Hz], default 240.0
+        pybullet rate in dynamic mode (rounded to whole steps per control period).
+    publish_rate : float [Hz], default 20.0
+        Control rate: one world step and one /clock, /swarm/poses and odom message
+        per period of sim time. Read-only.
+    real_time_factor : float, default 1.0
+        Sim seconds per wall second; 0 = as fast as possible.
+    lockstep : bool, default false
+        Before each step wait for a new cmd_vel from every robot (deterministic).
+    cmd_timeout : float [s of sim time], default 0.5
+        A robot whose last command is older stops.
+    clip : bool, default true
+        Clip commands to the scenario's max_linear_speed / max_angular_speed.
+    gui : bool, default false
+        Open the pybullet GUI. Read-only.
+
+    Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
+    index = robot id), ``/mona_<i>/odom``; subscribes ``/mona_<i>/cmd_vel``.
+    Services: ``/sim/reset`` (Trigger: back to the initial state, every robot
+    stopped; the clock keeps running), ``/sim/pause`` (SetBool: true pauses),
+    ``/sim/stats`` (Trigger: JSON of the control loop since the previous call, see
+    :meth:`on_stats`; ``bench/bench_ros.py`` uses it).
+    """
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__("sim_bridge", **kwargs)
+        self._declare_parameters()
+        get = self.get_parameter
+        scenario = load(get("scenario").value)
+        if get("num_robots").value > 0:
+            scenario = scenario.with_robots(get("num_robots").value)
+        self.scenario = scenario
+        positions, headings = scenario.initial_state(get("seed").value)
+        self.n = len(headings)
+        self.rate = get("publish_rate").value
+        self.dt = 1.0 / self.rate
+        self.dt_ns = round(1e9 / self.rate)
+        self.limits = (scenario.max_linear_speed, scenario.max_angular_speed)
+        self.lockstep = get("lockstep").value
+        self.real_time_factor = get("real_time_factor").value
+        self.world = World(
+            positions,
+            headings,
+            mode=get("mode").value,
+            dt=self.dt,
+            physics_rate=get("physics_rate").value,
+            cmd_timeout=get("cmd_timeout").value,
+            limits=self.limits if get("clip").value else None,
+            gui=get("gui").value,
+        )
+        self.paused = False
+        self.fresh = np.zeros(self.n, dtype=bool)  # lockstep: new cmd_vel since last publish
+        self.waiting = False  # lockstep at full speed: step timer parked until all arrived
+        self.steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.last_publish = time.monotonic()
+        self.publish_wall = self.last_publish  # when the newest state went out [s, monotonic]
+        self._reset_stats()
+
+        self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
+        self.poses_pub = self.create_publisher(PoseArray, "/swarm/poses", SENSOR)
+        # Every QoS event handler is one more entity in each wait of the executor;
+        # robot 0's report incompatible QoS (all robots are alike), the others none.
+        quiet_pub = PublisherEventCallbacks(use_default_callbacks=False)
+        quiet_sub = SubscriptionEventCallbacks(use_default_callbacks=False)
+        self.odom_pubs = [
+            self.create_publisher(
+                Odometry, f"/mona_{i}/odom", SENSOR, event_callbacks=quiet_pub if i else None
+            )
+            for i in range(self.n)
+        ]
+        self.cmd_subs = [
+            self.create_subscription(
+                Twist,
+                f"/mona_{i}/cmd_vel",
+                self._cmd_callback(i),
+                LATEST_COMMAND,
+                event_callbacks=quiet_sub if i else None,
+            )
+            for i in range(self.n)
+        ]
+        self.create_service(Trigger, "/sim/reset", self.on_reset)
+        self.create_service(SetBool, "/sim/pause", self.on_pause)
+        self.create_service(Trigger, "/sim/stats", self.on_stats)
+        self._build_messages()
+        self._update_odom_listeners()
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+
+        self.step_timer = self.create_timer(self._step_period(), self.on_step, clock=self.steady)
+        self.watchdog = self.create_timer(0.25, self.on_watchdog, clock=self.steady)
+        self.publish_state()
+        if abs(scenario.dt - self.dt) > 1e-12:
+            self.get_logger().warning(
+                f"publish_rate {self.rate:g} Hz differs from the scenario's dt = "
+                f"{scenario.dt:g} s; robots should use dt = {self.dt:g} s"
+            )
+        self.get_logger().info(
+            f"{self.n} robots, {self.world.mode} mode, {self.rate:g} Hz control, "
+            f"{self.world.substeps} physics steps per period, lockstep={self.lockstep}, "
+            f"real_time_factor={self.real_time_factor:g}"
+        )
+
+    # --- set-up ----------------------------------------------------------------
+    def _declare_parameters(self) -> None:
+        ro = {"read_only": True}
+        self.declare_parameter(
+            "scenario",
+            "combined",
+            ParameterDescriptor(
+                description="setup name (linear|rotation|combined) or scenario YAML path", **ro
+            ),
+        )
+        self.declare_parameter(
+            "num_robots",
+            0,
+            ParameterDescriptor(
+                description="robots on a grid; 0 = the scenario's formation",
+                integer_range=[IntegerRange(from_value=0, to_value=10000, step=1)],
+                **ro,
+            ),
+        )
+        self.declare_parameter(
+            "seed",
+            0,
+            ParameterDescriptor(
+                description="seed of the initial state (Scenario.initial_state)",
+                integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)],
+                **ro,
+            ),
+        )
+        self.declare_parameter(
+            "mode",
+            "kinematic",
+            ParameterDescriptor(
+                description="kinematic | dynamic",
+                additional_constraints="one of " + ", ".join(MODES),
+                **ro,
+            ),
+        )
+        self.declare_parameter(
+            "physics_rate",
+            240.0,
+            _float_param("pybullet step rate in dynamic mode [Hz]", 1.0, 10000.0, True),
+        )
+        self.declare_parameter(
+            "publish_rate",
+            20.0,
+            _float_param(
+                "control rate: world steps, /clock, poses and odom [Hz]", 0.1, 1000.0, True
+            ),
+        )
+        self.declare_parameter(
+            "real_time_factor",
+            1.0,
+            _float_param("sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
+        )
+        self.declare_parameter(
+            "lockstep",
+            False,
+            ParameterDescriptor(description="wait for every robot's cmd_vel before each step"),
+        )
+        self.declare_parameter(
+            "cmd_timeout",
+            0.5,
+            _float_param("a robot whose last cmd_vel is older stops [s, sim time]", 0.0, 1e6),
+        )
+        self.declare_parameter(
+            "clip",
+            True,
+            ParameterDescriptor(
+                description="clip commands to the scenario's max_linear_speed and max_angular_speed"
+            ),
+        )
+        self.declare_parameter(
+            "gui", False, ParameterDescriptor(description="open the pybullet GUI", **ro)
+        )
+        mode = self.get_parameter("mode").value
+        if mode not in MODES:
+            raise ParameterError(f"mode: {mode!r} is not allowed; use one of {', '.join(MODES)}")
+
+    def _build_messages(self) -> None:
+        """Messages reused every step: only their numbers change.
+
+        ``/swarm/poses`` is written straight into its wire format
+        (:class:`aes_ros.ros.cdr.PoseArrayEncoder`); one Time object is shared by
+        the clock and every odometry header.
+        """
+        self.stamp = Time()
+        self.clock_msg = ClockMsg(clock=self.stamp)
+        self.poses_encoder = PoseArrayEncoder(self.n, "odom")
+        self.odom_msgs = []
+        for i in range(self.n):
+            odom = Odometry()
+            odom.header.frame_id = "odom"
+            odom.header.stamp = self.stamp
+            odom.child_frame_id = f"mona_{i}/base_link"
+            self.odom_msgs.append(odom)
+
+    def _cmd_callback(self, robot_id: int):
+        def on_cmd_vel(msg: Twist) -> None:
+            self.on_cmd_vel(robot_id, msg)
+
+        return on_cmd_vel
+
+    def _step_period(self) -> float:
+        """Wall period [s] of the step timer."""
+        return self.dt / self.real_time_factor if self.real_time_factor > 0.0 else 0.0
+
+    # --- callbacks ---------------------------------------------------------------
+    def on_cmd_vel(self, robot_id: int, msg: Twist) -> None:
+        """Store robot ``robot_id``'s command; in lockstep, step once all are in."""
+        u, turn = msg.linear.x, msg.angular.z
+        if not (math.isfinite(u) and math.isfinite(turn)):
+            self.get_logger().warning(
+                f"dropped a non-finite cmd_vel of robot {robot_id}", throttle_duration_sec=5.0
+            )
+            return
+        self.world.set_command(robot_id, u, turn)
+        self.cmd_counts[robot_id] += 1
+        if len(self.latencies) < MAX_LATENCY_SAMPLES:
+            self.latencies.append(time.monotonic() - self.publish_wall)
+        self.fresh[robot_id] = True
+        if self.waiting and self.fresh.all():
+            self._restart_stepping()
+
+    def _restart_stepping(self) -> None:
+        """(Re)start the step timer unless paused; :meth:`on_step` parks it again if need be."""
+        self.waiting = False
+        if not self.paused:
+            self.step_timer.reset()
+
+    def on_step(self) -> None:
+        """Timer: one control step of the world, then publish the new state."""
+        if self.paused:
+            return
+        if self.lockstep and not self.fresh.all():
+            if self.real_time_factor == 0.0:
+                # Park the busy timer; on_cmd_vel restarts it when the last command is in.
+                self.step_timer.cancel()
+                self.waiting = True
+            return
+        self.fresh[:] = False
+        self.world.step()
+        self.publish_state()
+
+    def _update_odom_listeners(self) -> None:
+        """Robots whose odometry has a subscriber (checked 4x per wall second, not per step)."""
+        self.odom_listened = [
+            i for i, pub in enumerate(self.odom_pubs) if pub.get_subscription_count()
+        ]
+
+    def on_watchdog(self) -> None:
+        """Refresh the odometry listeners; in lockstep, re-publish the state if some
+        robot has not answered for a while."""
+        self._update_odom_listeners()
+        if not self.lockstep or self.paused or self.fresh.all():
+            return
+        waited = time.monotonic() - self.last_publish
+        if waited > REPUBLISH_AFTER:
+            missing = np.flatnonzero(~self.fresh)
+            self.get_logger().info(
+                f"lockstep: re-publishing t={self.world.time:g} s; no command yet from "
+                f"{len(missing)} robots (first: {missing[:5].tolist()})",
+                throttle_duration_sec=5.0,
+            )
+            self.publish_state()
+
+    def on_reset(self, request: Trigger.Request, response: Trigger.Response):
+        """Back to the initial state; every robot stopped; the clock keeps running."""
+        self.world.reset()
+        self.fresh[:] = False
+        self.publish_state()
+        response.success = True
+        response.message = f"reset {self.n} robots to the initial state at t={self.world.time:g} s"
+        return response
+
+    def on_pause(self, request: SetBool.Request, response: SetBool.Response):
+        """``data`` true pauses the world (and the clock), false resumes it."""
+        self.paused = bool(request.data)
+        if self.paused:
+            self.step_timer.cancel()  # no busy timer while paused at real_time_factor 0
+        else:
+            self._restart_stepping()
+        response.success = True
+        response.message = "paused" if self.paused else "running"
+        return response
+
+    def _reset_stats(self) -> None:
+        self.stats_since = (time.monotonic(), self.world.step_count)
+        self.cmd_counts = np.zeros(self.n, dtype=np.int64)
+        self.latencies: list[float] = []
+
+    def on_stats(self, request: Trigger.Request, response: Trigger.Response):
+        """Control-loop figures since the previous call (or the start), as JSON.
+
+        ``wall_s`` and ``sim_s`` elapsed (their ratio is the real-time factor),
+        per-robot ``cmd_vel`` rates [Hz of wall time] (min, median), and the
+        latency [ms] from publishing a state (poses, odometry; stamp = its sim
+        time) to each ``cmd_vel`` arriving here, counted against the newest state
+        published before it arrived (p50, p99, max). Resets the counters.
+        """
+        wall0, step0 = self.stats_since
+        wall = time.monotonic() - wall0
+        rates = self.cmd_counts / wall if wall > 0 else np.zeros(self.n)
+        lat = np.asarray(self.latencies) * 1e3
+        stats = {
+            "robots": self.n,
+            "wall_s": wall,
+            "sim_s": (self.world.step_count - step0) * self.dt,
+            "rate_min_hz": float(rates.min()) if self.n else 0.0,
+            "rate_median_hz": float(np.median(rates)) if self.n else 0.0,
+            "commands": int(self.cmd_counts.sum()),
+            "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
+            "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
+            "latency_max_ms": float(lat.max()) if lat.size else None,
+        }
+        stats["real_time_factor"] = stats["sim_s"] / wall if wall > 0 else 0.0
+        self._reset_stats()
+        response.success = True
+        response.message = json.dumps(stats)
+        return response
+
+    def on_parameters_set(self, params: list[Parameter]) -> None:
+        """Apply runtime changes of real_time_factor, lockstep, cmd_timeout and clip."""
+        for p in params:
+            if p.name == "real_time_factor":
+                self.real_time_factor = p.value
+                self.step_timer.timer_period_ns = round(self._step_period() * 1e9)
+                self._restart_stepping()
+            elif p.name == "lockstep":
+                self.lockstep = p.value
+                self._restart_stepping()
+            elif p.name == "cmd_timeout":
+                self.world.cmd_timeout = p.value
+            elif p.name == "clip":
+                self.world.limits = self.limits if p.value else None
+
+    # --- output ------------------------------------------------------------------
+    def publish_state(self) -> None:
+        """Publish /clock, /swarm/poses and the odometry for the current step.
+
+        Odometry goes only to robots whose ``odom`` topic has a subscriber (the
+        ``odom`` neighbour source, a driver, ``ros2 topic echo``; a new subscriber
+        is noticed within 0.25 s): for nobody, building and publishing N messages
+        would cost more than the physics.
+        """
+        self.publish_wall = time.monotonic()
+        ns = self.world.step_count * self.dt_ns
+        self.stamp.sec, self.stamp.nanosec = divmod(ns, 1_000_000_000)
+        self.clock_pub.publish(self.clock_msg)
+        positions, headings = self.world.poses()
+        self.poses_pub.publish(
+            self.poses_encoder.encode(self.stamp.sec, self.stamp.nanosec, positions, headings)
+        )
+        listened = self.odom_listened
+        if listened:
+            forward, sideways, turn = self.world.velocities()
+            encoded = self.poses_encoder.poses  # x, y, z, qx, qy, qz, qw as just published
+            for i, (x, y), (qz, qw) in zip(
+                listened,
+                encoded[listened, 0:2].tolist(),
+                encoded[listened, 5:7].tolist(),
+                strict=True,
+            ):
+                odom = self.odom_msgs[i]
+                pose = odom.pose.pose
+                pose.position.x = x
+                pose.position.y = y
+                pose.orientation.z = qz
+                pose.orientation.w = qw
+                twist = odom.twist.twist
+                twist.linear.x = float(forward[i])
+                twist.linear.y = float(sideways[i])
+                twist.angular.z = float(turn[i])
+                self.odom_pubs[i].publish(odom)
+        self.last_publish = time.monotonic()
+
+    def destroy_node(self) -> None:
+        self.world.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``aes-sim-bridge``.
+
+    Spins with :func:`aes_ros.ros.spin.spin` (EventsExecutor; SIGINT and SIGTERM
+    end the loop, then the node is destroyed in order). Exit code 0 on a signal,
+    2 on a bad parameter or a world that cannot be built.
+    """
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = None
+    code = 0
+    try:
+        node = SimBridgeNode()
+        spin([node])
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ParameterError, ParameterException, ValueError, RuntimeError) as exc:
+        print(f"aes-sim-bridge: {exc}", file=sys.stderr)
+        code = 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""AES supervisor: swarm command (desired velocity, rotation centre, enable) and metrics."""

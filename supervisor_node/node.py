@@ -1,0 +1,358 @@
+"""AES supervisor node: what every robot is told, and how the swarm is doing (SPEC §7).
+
+Publishes the swarm command ``/swarm/desired_velocity`` (v_d, ω), the rotation
+centre ``/swarm/rotation_center`` (the live centroid of ``/swarm/poses`` or a
+fixed point) and ``/swarm/enabled``, and the metrics ψ (E8), ψ_heading (E7)
+and F (E9) on ``/swarm/alignment``, ``/swarm/heading_order`` and
+``/swarm/total_force``, computed from ``/swarm/poses`` with the same core
+functions as the offline simulator.
+
+Start it::
+
+    aes-supervisor --ros-args -p scenario:=combined -p num_robots:=16 \\
+        -p publish_rate:=10.0 -p use_sim_time:=true
+
+Steer at runtime (full ROS 2 install)::
+
+    ros2 topic pub --once /swarm/cmd geometry_msgs/msg/Twist "{linear: {x: 0.0, y: 1.0}}"
+    ros2 param set /supervisor rotation_rate 0.5
+    ros2 service call /swarm/enable std_srvs/srv/SetBool "{data: false}"
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+import time
+from typing import Any
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Bool, Float64
+from std_srvs.srv import SetBool
+
+from aes_ros.metrics import alignment_order, heading_order, total_force
+from aes_ros.model import Gains, SwarmCommand, total_forces
+from aes_ros.params import PARAMS, ParameterError
+from aes_ros.ros import parameters as rp
+from aes_ros.ros.cdr import decode_pose_array
+from aes_ros.ros.conversions import (
+    BadMessageError,
+    drive_to_twist,
+    twist_to_drive,
+)
+from aes_ros.ros.qos import COMMAND, SENSOR
+from aes_ros.ros.qos import LATCHED_WRITER as LATCHED
+from aes_ros.ros.spin import spin
+
+NODE_NAME = "supervisor"
+RCLError = rclpy_implementation.RCLError
+CENTER_MODES = ("centroid", "fixed")
+#: Supervisor parameters checked against a PARAMS entry of another name.
+_SPEC_OF = {
+    "desired_direction": PARAMS["direction"],
+    "rotation_rate": PARAMS["omega"],
+    "rotation_center": PARAMS["rotation_center"],
+}
+_COMMAND_NAMES = (
+    "desired_direction",
+    "rotation_rate",
+    "rotation_center_mode",
+    "rotation_center",
+    "publish_rate",
+    "enabled",
+)
+#: Seconds between repeated warnings about dropped messages.
+WARN_PERIOD = 5.0
+
+
+class SupervisorNode(Node):
+    """The swarm's supervisor, node ``supervisor``.
+
+    Parameters (runtime-settable unless read-only; invalid values are rejected
+    with a reason and the old value stays):
+
+    - ``desired_direction`` (double[2], default: the scenario's direction): v_d,
+      world frame; its length scales the drive, [0, 0] switches it off.
+    - ``rotation_rate`` (double [rad/s], default: the scenario's ω):
+      counter-clockwise positive.
+    - ``rotation_center_mode`` (string, ``centroid`` | ``fixed``, default: the
+      scenario's): x_c is the live centroid of ``/swarm/poses`` or ``rotation_center``.
+    - ``rotation_center`` (double[2] [m], default: the scenario's fixed centre or
+      [0, 0]): the fixed x_c.
+    - ``publish_rate`` (double [Hz], default 20.0): rate of the metrics.
+    - ``enabled`` (bool, default true): false makes every robot publish zero
+      ``cmd_vel``; also set by the ``/swarm/enable`` service.
+    - ``alpha`` … ``d_theta`` (double, default: the scenario's): the gains used
+      for the metrics' force (only k, w_l, w_r matter).
+    - ``scenario`` (string, default ``combined``), ``num_robots`` (int, default 0),
+      read-only: the sheet and defaults.
+
+    ``/swarm/cmd`` (Twist: linear.{x,y} → v_d, angular.z → ω) sets
+    ``desired_direction`` and ``rotation_rate`` like a parameter set, so
+    ``ros2 param get`` agrees. In centroid mode ``/swarm/rotation_center`` is
+    published for every ``/swarm/poses`` message, stamped with its stamp.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        self._warned: dict[str, float] = {}
+        scen = rp.declare_scenario(self)
+        _, self._neighbors, self._rest = scen.sheet()
+        rp.declare_model_parameters(self, rp.GAIN_NAMES, scen.values)
+        command = scen.command
+        self.declare_parameter(
+            "desired_direction",
+            [float(v) for v in command.direction],
+            rp.descriptor(PARAMS["direction"]),
+        )
+        self.declare_parameter(
+            "rotation_rate", float(command.omega), rp.descriptor(PARAMS["omega"])
+        )
+        self.declare_parameter(
+            "rotation_center_mode",
+            "centroid" if command.center is None else "fixed",
+            rp.text_descriptor(
+                "rotation centre x_c: the live centroid of /swarm/poses or rotation_center",
+                CENTER_MODES,
+            ),
+        )
+        self.declare_parameter(
+            "rotation_center",
+            [0.0, 0.0] if command.center is None else [float(v) for v in command.center],
+            rp.array_descriptor(
+                "fixed rotation centre x_c (rotation_center_mode: fixed)",
+                "m",
+                "two numbers, each in [-1e4, 1e4]",
+            ),
+        )
+        self.declare_parameter(
+            "publish_rate",
+            20.0,
+            rp.float_descriptor("rate of the metrics topics", "Hz", 0.01, 1000.0),
+        )
+        self.declare_parameter(
+            "enabled", True, rp.bool_descriptor("false: every robot publishes zero cmd_vel")
+        )
+        reason = self._check({})
+        if reason is not None:
+            raise ParameterError(reason)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
+
+        #: Messages published so far, per topic.
+        self.published: dict[str, int] = {}
+        self._velocity_pub = self.create_publisher(TwistStamped, "/swarm/desired_velocity", LATCHED)
+        self._center_pub = self.create_publisher(PointStamped, "/swarm/rotation_center", LATCHED)
+        self._enabled_pub = self.create_publisher(Bool, "/swarm/enabled", LATCHED)
+        self._alignment_pub = self.create_publisher(Float64, "/swarm/alignment", LATCHED)
+        self._heading_pub = self.create_publisher(Float64, "/swarm/heading_order", LATCHED)
+        self._force_pub = self.create_publisher(Float64, "/swarm/total_force", LATCHED)
+        self.create_subscription(Twist, "/swarm/cmd", self.on_cmd, COMMAND)
+        # Raw: the poses are read from the wire format with numpy (aes_ros.ros.cdr).
+        self.create_subscription(PoseArray, "/swarm/poses", self.on_poses, SENSOR, raw=True)
+        self.create_service(SetBool, "/swarm/enable", self.on_enable)
+
+        self._poses: tuple[Any, np.ndarray, np.ndarray] | None = None
+        self._poses_new = False
+        self._timer = None
+        self._state: dict[str, Any] = {}
+        self._apply_parameters()
+
+    # --- parameters -------------------------------------------------------------------
+
+    def _check(self, updates: dict[str, Any]) -> str | None:
+        """Reason why the parameters with ``updates`` applied are invalid, or None."""
+
+        def value(name: str) -> Any:
+            return updates[name] if name in updates else self.get_parameter(name).value
+
+        reason = rp.check([Parameter(n, value=value(n)) for n in rp.GAIN_NAMES])
+        if reason is not None:
+            return reason
+        for name, spec in _SPEC_OF.items():
+            raw = value(name)
+            try:
+                spec.validate(list(raw) if isinstance(raw, list | tuple) else raw)
+            except ParameterError as exc:
+                return f"{name}: {str(exc).partition(': ')[2]}"
+        if value("rotation_center_mode") not in CENTER_MODES:
+            return (
+                f"rotation_center_mode: {value('rotation_center_mode')!r} is not one of "
+                f"{', '.join(CENTER_MODES)}"
+            )
+        return None
+
+    def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Check a parameter set (rclpy already checked types and scalar ranges)."""
+        reason = self._check({p.name: p.value for p in params})
+        if reason is not None:
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def on_parameters_set(self, params: list[Parameter]) -> None:
+        self._apply_parameters()
+
+    def _apply_parameters(self) -> None:
+        """Read the parameters; publish whatever part of the command changed."""
+        p = {param.name: param.value for param in self.get_parameters(_COMMAND_NAMES)}
+        self._gains = Gains(
+            **{param.name: param.value for param in self.get_parameters(rp.GAIN_NAMES)}
+        )
+        old, self._state = self._state, p
+        self._direction = (float(p["desired_direction"][0]), float(p["desired_direction"][1]))
+        self._omega = float(p["rotation_rate"])
+        self._fixed_center = (float(p["rotation_center"][0]), float(p["rotation_center"][1]))
+        self._centroid_mode = p["rotation_center_mode"] == "centroid"
+        if _changed(old, p, "desired_direction", "rotation_rate"):
+            self._publish_velocity()
+        if _changed(old, p, "rotation_center_mode", "rotation_center"):
+            self._publish_center()
+        if _changed(old, p, "enabled"):
+            self._publish(self._enabled_pub, Bool(data=bool(p["enabled"])))
+        if _changed(old, p, "publish_rate"):
+            if self._timer is not None:
+                self.destroy_timer(self._timer)
+            self._timer = self.create_timer(1.0 / p["publish_rate"], self.on_timer)
+
+    def _publish_velocity(self) -> None:
+        msg = TwistStamped()
+        msg.header.stamp = self.get_clock().now().to_msg()
+        msg.header.frame_id = "odom"
+        msg.twist = drive_to_twist(self._direction, self._omega)
+        self._publish(self._velocity_pub, msg)
+
+    def _publish_center(self) -> None:
+        """Publish x_c: the fixed point now, or the centroid of the latest poses."""
+        msg = PointStamped()
+        msg.header.frame_id = "odom"
+        if self._centroid_mode:
+            if self._poses is None:
+                return
+            stamp, xy, _ = self._poses
+            msg.header.stamp = stamp
+            msg.point.x, msg.point.y = (float(v) for v in xy.mean(axis=0))
+        else:
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.point.x, msg.point.y = self._fixed_center
+        self._publish(self._center_pub, msg)
+
+    # --- inputs -----------------------------------------------------------------------
+
+    def on_cmd(self, msg: Twist) -> None:
+        """``/swarm/cmd``: set desired_direction and rotation_rate (as parameters)."""
+        try:
+            direction, omega = twist_to_drive(msg)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/cmd: {exc}")
+            return
+        result = self.set_parameters_atomically(
+            [
+                Parameter("desired_direction", Parameter.Type.DOUBLE_ARRAY, list(direction)),
+                Parameter("rotation_rate", Parameter.Type.DOUBLE, omega),
+            ]
+        )
+        if not result.successful:
+            self._warn(f"ignored /swarm/cmd: {result.reason}")
+
+    def on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        """``/swarm/enable``: false makes every robot stop, true lets them move again."""
+        result = self.set_parameters([Parameter("enabled", Parameter.Type.BOOL, request.data)])[0]
+        response.success = result.successful
+        response.message = (
+            ("enabled" if request.data else "disabled") if result.successful else (result.reason)
+        )
+        return response
+
+    def on_poses(self, data: bytes) -> None:
+        """Keep the latest poses; in centroid mode publish their centroid right away.
+
+        A message that is not finite, has a coordinate beyond ±MAX_COORDINATE or not
+        one pose per robot is dropped with a throttled warning (the last good one stays).
+        """
+        try:
+            # One pose per robot of the scenario, or none of them: a partial array
+            # would give a wrong centroid.
+            sec, nanosec, xy, yaw = decode_pose_array(data, expected=len(self._neighbors))
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/poses: {exc}")
+            return
+        self._poses = (Time(sec=sec, nanosec=nanosec), xy, yaw)
+        self._poses_new = True
+        if self._centroid_mode:
+            self._publish_center()
+
+    def on_timer(self) -> None:
+        """Publish ψ (E8), ψ_heading (E7) and F (E9) of the latest poses."""
+        if not self._poses_new or self._poses is None:
+            return
+        self._poses_new = False
+        _, xy, yaw = self._poses
+        command = SwarmCommand(
+            self._direction, self._omega, None if self._centroid_mode else self._fixed_center
+        )
+        forces = total_forces(xy, self._neighbors, self._rest, self._gains, command)
+        self._publish(self._alignment_pub, Float64(data=float(alignment_order(forces, yaw))))
+        self._publish(self._heading_pub, Float64(data=float(heading_order(yaw))))
+        self._publish(self._force_pub, Float64(data=float(total_force(forces))))
+
+    def _publish(self, publisher: Any, msg: Any) -> None:
+        publisher.publish(msg)
+        self.published[publisher.topic_name] = self.published.get(publisher.topic_name, 0) + 1
+
+    def destroy_node(self) -> None:
+        # Counted at the publisher, so that a recording can be checked for losses.
+        counts = ", ".join(f"{topic} {n}" for topic, n in sorted(self.published.items()))
+        # Not the node's logger: the context may be gone, and with it /rosout.
+        rclpy.logging.get_logger("published").info(f"{self.get_fully_qualified_name()}: {counts}")
+        super().destroy_node()
+
+    def _warn(self, text: str) -> None:
+        """A warning at most every WARN_PERIOD s per kind (the text before its first
+        colon): rclpy's own throttle would let one kind silence all the others."""
+        kind = text.partition(":")[0]
+        now = time.monotonic()
+        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD:
+            self._warned[kind] = now
+            self.get_logger().warning(text)
+
+
+def _changed(old: dict[str, Any], new: dict[str, Any], *names: str) -> bool:
+    return any(name not in old or old[name] != new[name] for name in names)
+
+
+def main(args: list[str] | None = None) -> int:
+    """``aes-supervisor``."""
+    node = None
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        node = SupervisorNode()
+        spin([node])
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (
+        ParameterError,
+        InvalidParameterValueException,
+        InvalidParameterTypeException,
+        RCLError,  # e.g. a --params-file that is missing or not valid YAML
+    ) as exc:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
