@@ -1,0 +1,240 @@
+"""``aes-swarm launch`` (the whole ROS system) and ``aes-swarm steer`` (runtime steering).
+
+Examples::
+
+    aes-swarm launch --setup combined --robots 100 --duration 30 --out out/ros \
+        --record out/ros/run.mcap
+    aes-swarm launch --setup linear --robots 16 --lockstep --real-time-factor 0 --out out/lin
+    aes-swarm steer --direction 0 1            # drive north, keep the rotation rate
+    aes-swarm steer --omega 0.5                # turn counter-clockwise, keep the direction
+
+``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
+as separate processes (see :mod:`aes_ros.ros.launcher`), waits until every
+robot moves, runs ``--duration`` seconds of sim time (0: until Ctrl-C), stops
+every process and writes the same outputs as ``aes-swarm simulate``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+from aes_ros.cli.simulate import _positive_int, add_scenario_options, load_scenario
+from aes_ros.params import ParameterError
+
+
+def _nonneg_float(name: str):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not a number") from None
+        if not (math.isfinite(value) and value >= 0):
+            raise argparse.ArgumentTypeError(f"{name}: need a number >= 0, got {text}")
+        return value
+
+    return parse
+
+
+def _finite_float(name: str):
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not a number") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not finite")
+        return value
+
+    return parse
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    from aes_ros.ros.launcher import LAYOUTS, MODES, NEIGHBOR_SOURCES
+
+    p = sub.add_parser(
+        "launch",
+        help="run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
+        description="Start aes-sim-bridge, aes-supervisor and the robot nodes as separate "
+        "processes, wait until every robot moves, run for --duration seconds of sim time "
+        "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
+        "snapshots.png and metrics.png to --out.",
+    )
+    add_scenario_options(p)
+    p.add_argument(
+        "--robots", type=_positive_int("--robots"), default=None,
+        help="number of robots N (a near-square grid; default: the scenario's formation)",
+    )  # fmt: skip
+    p.add_argument(
+        "--layout", choices=LAYOUTS, default="per-core",
+        help="robot processes: one for all, one per core (default), or one per robot",
+    )  # fmt: skip
+    p.add_argument(
+        "--neighbor-source", choices=NEIGHBOR_SOURCES, default="poses",
+        help="neighbour positions from /swarm/poses (default) or the neighbours' odom",
+    )  # fmt: skip
+    p.add_argument(
+        "--mode", choices=MODES, default="kinematic",
+        help="kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors and collisions",
+    )  # fmt: skip
+    p.add_argument(
+        "--duration", type=_nonneg_float("--duration"), default=None,
+        help="sim time [s] to run after every robot moves (default: the scenario's "
+        "duration; 0: until Ctrl-C)",
+    )  # fmt: skip
+    p.add_argument("--seed", type=int, default=0, help="seed of the initial state (as simulate)")
+    p.add_argument(
+        "--record", type=Path, default=None, metavar="FILE.mcap",
+        help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag",
+    )  # fmt: skip
+    p.add_argument("--out", type=Path, default=None, help="output directory (plots, metrics, logs)")
+    p.add_argument("--gui", action="store_true", help="show the pybullet GUI")
+    p.add_argument(
+        "--lockstep", action="store_true",
+        help="each control step waits for every robot's command (deterministic)",
+    )  # fmt: skip
+    p.add_argument(
+        "--real-time-factor", type=_nonneg_float("--real-time-factor"), default=1.0,
+        metavar="X", help="sim speed relative to wall time (0: as fast as possible; default 1)",
+    )  # fmt: skip
+    p.set_defaults(func=run_launch)
+
+    s = sub.add_parser(
+        "steer",
+        help="steer the running swarm: publish one /swarm/cmd",
+        description="Publish one geometry_msgs/Twist on /swarm/cmd (linear.x/y = desired "
+        "direction, angular.z = rotation rate ω, counter-clockwise positive) and wait until "
+        "the supervisor echoes it on /swarm/desired_velocity. A value not given keeps the "
+        "supervisor's current one.",
+    )
+    s.add_argument(
+        "--direction", nargs=2, type=_finite_float("--direction"), metavar=("X", "Y"),
+        default=None, help="desired direction v_d in the world frame (0 0 switches the drive off)",
+    )  # fmt: skip
+    s.add_argument(
+        "--omega", type=_finite_float("--omega"), default=None, metavar="W",
+        help="rotation rate ω [rad/s], counter-clockwise positive",
+    )  # fmt: skip
+    s.add_argument(
+        "--timeout", type=_nonneg_float("--timeout"), default=15.0,
+        help="give up after this many seconds [s] (default 15)",
+    )  # fmt: skip
+    s.set_defaults(func=run_steer)
+
+
+def run_launch(args: argparse.Namespace) -> int:
+    from aes_ros import scenario as scenario_mod
+    from aes_ros.ros.launcher import LaunchConfig, LaunchError, launch
+
+    sc = load_scenario(args)
+    if args.robots is not None:
+        sc = sc.with_robots(args.robots)
+    overrides = scenario_mod.parse_assignments(args.set)
+    label = args.scenario.stem if args.scenario is not None else args.setup
+    config = LaunchConfig(
+        scenario=sc,
+        label=f"{label} (ROS)",
+        layout=args.layout,
+        neighbor_source=args.neighbor_source,
+        mode=args.mode,
+        duration=None,  # load_scenario already applied --duration to the scenario
+        seed=args.seed,
+        record=args.record,
+        out_dir=args.out,
+        gui=args.gui,
+        lockstep=args.lockstep,
+        real_time_factor=args.real_time_factor,
+        clip=bool(sc.clip) if "clip" in overrides else None,
+    )
+    try:
+        result = launch(config, say=lambda line: print(line, flush=True))
+    except LaunchError as exc:
+        print(f"aes-swarm launch: error: {exc}", file=sys.stderr)
+        return 1
+    if result.summary:
+        print(f"{result.summary}  [{result.wall_time:.1f} s wall, outputs in {args.out}]")
+    else:
+        t = result.times
+        span = t[-1] - t[0] if len(t) else 0.0
+        print(f"launch: ran {span:.1f} s of sim time in {result.wall_time:.1f} s wall")
+    if args.record is not None:
+        print(f"bag: {args.record}")
+    return 0
+
+
+def run_steer(args: argparse.Namespace) -> int:
+    if args.direction is None and args.omega is None:
+        raise ParameterError("steer: give --direction X Y and/or --omega W")
+    ok, message = steer(args.direction, args.omega, timeout=args.timeout)
+    print(message, file=sys.stdout if ok else sys.stderr)
+    return 0 if ok else 1
+
+
+def steer(
+    direction: tuple[float, float] | list[float] | None,
+    omega: float | None,
+    timeout: float = 15.0,
+) -> tuple[bool, str]:
+    """Publish one /swarm/cmd and wait for the supervisor's /swarm/desired_velocity echo.
+
+    A None value keeps the supervisor's current one (read from the latched
+    /swarm/desired_velocity). Returns (success, message).
+    """
+    import rclpy
+    from geometry_msgs.msg import Twist, TwistStamped
+    from rclpy.executors import SingleThreadedExecutor
+
+    from aes_ros.ros.qos import COMMAND, LATCHED
+
+    rclpy.init(args=[])
+    node = rclpy.create_node("aes_steer")
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    current: list[TwistStamped] = []
+    node.create_subscription(TwistStamped, "/swarm/desired_velocity", current.append, LATCHED)
+    pub = node.create_publisher(Twist, "/swarm/cmd", COMMAND)
+    deadline = time.monotonic() + timeout
+    try:
+        # Wait for the supervisor (its /swarm/cmd subscription and its latched state).
+        start = time.monotonic()
+        while pub.get_subscription_count() == 0 or (
+            not current and ((direction is None or omega is None) or time.monotonic() < start + 3)
+        ):
+            if time.monotonic() > deadline:
+                return False, (
+                    "steer: no supervisor found (nobody subscribes /swarm/cmd or publishes "
+                    f"/swarm/desired_velocity) within {timeout:g} s; is the swarm running "
+                    "in this ROS_DOMAIN_ID?"
+                )
+            executor.spin_once(timeout_sec=0.05)
+        last = current[-1].twist if current else None
+        cmd = Twist()
+        cmd.linear.x = float(direction[0]) if direction is not None else last.linear.x
+        cmd.linear.y = float(direction[1]) if direction is not None else last.linear.y
+        cmd.angular.z = float(omega) if omega is not None else last.angular.z
+        want = (cmd.linear.x, cmd.linear.y, cmd.angular.z)
+        pub.publish(cmd)
+        sent = time.monotonic()
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+            if current:
+                t = current[-1].twist
+                got = (t.linear.x, t.linear.y, t.angular.z)
+                if all(
+                    abs(a - b) <= 1e-9 * max(1.0, abs(b)) for a, b in zip(got, want, strict=True)
+                ):
+                    return True, (
+                        f"steer: supervisor now drives direction ({want[0]:g}, {want[1]:g}), "
+                        f"omega {want[2]:g} rad/s"
+                    )
+            if time.monotonic() - sent > 0.5:  # lost or not yet matched: send again
+                pub.publish(cmd)
+                sent = time.monotonic()
+        return False, f"steer: the supervisor did not confirm the command within {timeout:g} s"
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()

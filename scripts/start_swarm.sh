@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# Start an AES swarm by hand from the console scripts, as `aes-swarm launch` does:
+# the pybullet bridge, the supervisor and the robot hosts, each its own process.
+# Ctrl-C (or SIGTERM) stops all of them cleanly. (Started with `&` from another
+# script, bash ignores SIGINT for it: stop it with `kill -TERM` then.)
+#
+#   scripts/start_swarm.sh                     # 16 robots, combined setup, one host per core
+#   scripts/start_swarm.sh -s linear -n 36 -k 1
+#   scripts/start_swarm.sh -s my_scenario.yaml -x odom -m dynamic -g
+#
+# Options:
+#   -s SETUP   linear | rotation | combined (default) or a scenario YAML file
+#   -n N       number of robots (default 16; 0 = the scenario's formation)
+#   -k K       number of robot host processes (default: number of cores)
+#   -x SOURCE  neighbour source: poses (default) | odom
+#   -m MODE    kinematic (default) | dynamic
+#   -r X       real-time factor (default 1; 0 = as fast as possible)
+#   -e SEED    seed of the initial state (default 0)
+#   -g         pybullet GUI
+#
+# While it runs, in another shell (same ROS_DOMAIN_ID):
+#   scripts/steer.sh north               # or: aes-swarm steer --direction 0 1
+#   ros2 topic echo /swarm/alignment     # with a full ROS 2 install
+#   ros2 param set /supervisor rotation_rate 0.5
+set -euo pipefail
+
+SETUP=combined ROBOTS=16 HOSTS=$(nproc 2>/dev/null || echo 1) SOURCE=poses MODE=kinematic
+RTF=1.0 SEED=0 GUI=false
+while getopts "s:n:k:x:m:r:e:gh" opt; do
+    case $opt in
+        s) SETUP=$OPTARG ;;
+        n) ROBOTS=$OPTARG ;;
+        k) HOSTS=$OPTARG ;;
+        x) SOURCE=$OPTARG ;;
+        m) MODE=$OPTARG ;;
+        r) RTF=$OPTARG ;;
+        e) SEED=$OPTARG ;;
+        g) GUI=true ;;
+        h) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
+        *) echo "usage: $0 [-s setup|file] [-n robots] [-k hosts] [-x poses|odom]" \
+                "[-m kinematic|dynamic] [-r rtf] [-e seed] [-g]" >&2; exit 2 ;;
+    esac
+done
+case $ROBOTS in ''|*[!0-9]*) echo "$0: -n: need a whole number, got '$ROBOTS'" >&2; exit 2 ;; esac
+case $HOSTS in ''|*[!0-9]*|0) echo "$0: -k: need a whole number >= 1, got '$HOSTS'" >&2; exit 2 ;; esac
+case $SOURCE in poses|odom) ;; *) echo "$0: -x: poses or odom, got '$SOURCE'" >&2; exit 2 ;; esac
+case $MODE in kinematic|dynamic) ;; *) echo "$0: -m: kinematic or dynamic, got '$MODE'" >&2; exit 2 ;; esac
+case $RTF in *[!0-9.]*|'') echo "$0: -r: need a number >= 0, got '$RTF'" >&2; exit 2 ;; esac
+case $RTF in *.*) ;; *) RTF=$RTF.0 ;; esac  # a ROS double needs a decimal point
+
+# Console scripts of the environment this script's aes-swarm lives in, else PATH.
+BIN=${AES_BIN:-$(dirname "$(command -v aes-sim-bridge || echo ./aes-sim-bridge)")}
+if [ ! -x "$BIN/aes-sim-bridge" ]; then
+    echo "$0: aes-sim-bridge not found; activate the environment (pip install -e .)" >&2
+    exit 1
+fi
+
+# The robot count as the scenario sees it (0 = the scenario's own formation).
+if [ "$ROBOTS" -eq 0 ]; then
+    ROBOTS=$("$BIN/python" -c "from aes_ros import scenario; \
+print(len(scenario.load('$SETUP').nominal_positions()))" 2>/dev/null || true)
+    [ -n "$ROBOTS" ] || { echo "$0: cannot read scenario '$SETUP'" >&2; exit 2; }
+    NUM=0
+else
+    NUM=$ROBOTS
+fi
+[ "$HOSTS" -le "$ROBOTS" ] || HOSTS=$ROBOTS
+
+set -m  # each background job in its own process group: Ctrl-C reaches only this script
+PIDS=()
+start() {  # name, command...
+    local name=$1; shift
+    echo "starting $name: $*"
+    "$@" &
+    PIDS+=($!)
+}
+
+stop_all() {
+    trap - INT TERM
+    echo "stopping ${#PIDS[@]} processes"
+    for pid in "${PIDS[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
+    for _ in $(seq 100); do  # up to 10 s for a clean shutdown
+        alive=0
+        for pid in "${PIDS[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+        [ $alive -eq 0 ] && break
+        sleep 0.1
+    done
+    for pid in "${PIDS[@]}"; do
+        if kill -0 "$pid" 2>/dev/null; then
+            echo "killing $pid"
+            kill -KILL -- "-$pid" 2>/dev/null || kill -KILL "$pid" 2>/dev/null || true
+        fi
+    done
+    wait 2>/dev/null || true
+    # Fast DDS leaves shared-memory segments behind for killed processes.
+    [ -x "$BIN/fastdds" ] && "$BIN/fastdds" shm clean >/dev/null 2>&1 || true
+}
+trap 'stop_all; exit 0' INT TERM
+
+COMMON=(-p "scenario:=$SETUP" -p "num_robots:=$NUM")
+start sim_bridge "$BIN/aes-sim-bridge" --ros-args "${COMMON[@]}" -p "seed:=$SEED" \
+    -p "mode:=$MODE" -p "real_time_factor:=$RTF" -p "gui:=$GUI"
+start supervisor "$BIN/aes-supervisor" --ros-args "${COMMON[@]}" -p use_sim_time:=true
+for ((h = 0; h < HOSTS; h++)); do
+    first=$((h * ROBOTS / HOSTS)) end=$(((h + 1) * ROBOTS / HOSTS))
+    ids=$(seq -s, "$first" $((end - 1)))
+    start "robot_host_$h (robots $first..$((end - 1)))" "$BIN/aes-robot-host" --ros-args \
+        -r "robot_host:__node:=robot_host_$h" "${COMMON[@]}" -p use_sim_time:=true \
+        -p "neighbor_source:=$SOURCE" -p "robot_ids:=[$ids]"
+done
+echo "swarm running (ROS_DOMAIN_ID=${ROS_DOMAIN_ID:-0}); Ctrl-C stops it"
+
+# Run until Ctrl-C, or until one process ends by itself (then stop the rest too).
+set +e
+wait -n
+echo "a process exited; stopping the swarm" >&2
+stop_all
+exit 1
