@@ -1,0 +1,32 @@
+"""Smoke run of bench/bench_ros.py so the ROS benchmark cannot rot (figures are not asserted:
+CI machines are noisy; the targets live in the benchmark's output and the README)."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
+    out = subprocess.run(
+        [sys.executable, str(REPO / "bench" / "bench_ros.py"), "--quick", "--out", str(tmp_path)],
+        env=ros_env, capture_output=True, text=True, timeout=240,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.startswith("RESULT robots=16 "), last
+    fields = dict(item.split("=") for item in last.split()[1:])
+    assert float(fields["rate_min_hz"]) > 0.0  # every robot's cmd_vel reached the bridge
+    assert float(fields["rtf"]) > 0.0 and float(fields["start_s"]) > 0.0
+    rows = list(csv.DictReader((tmp_path / "bench_ros.csv").open()))
+    assert len(rows) == 1 and int(rows[0]["robots"]) == 16
+    assert (tmp_path / "bench_ros.png").stat().st_size > 0
+    assert "physics: 100 robots" in out.stdout
