@@ -125,7 +125,10 @@ def test_killed_robots_stop_are_left_out_and_rejoin(spawn, ros_env) -> None:
             if np.abs(obs.positions[k][DEAD] - ends).max() > 1e-9
         ]  # fmt: skip
         t_stopped = obs.times[moving[-1] + 1] if moving else obs.times[k_last]
-        assert t_stopped - t_last <= CMD_TIMEOUT + 2 * DT, (t_last, t_stopped)
+        # Steps of granularity: the timeout is checked once per control step, the stop
+        # shows one step later, and the bridge may have had one more cmd_vel than the
+        # last aes_force seen here (a host killed between the two publishes).
+        assert t_stopped - t_last <= CMD_TIMEOUT + 3 * DT + 1e-9, (t_last, t_stopped)
         assert obs.now - t_stopped > 2.0
 
         # Their neighbours leave them out once neighbor_timeout has passed.
