@@ -36,14 +36,13 @@ from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import SetBool, Trigger
 
 from aes_ros.params import ParameterError
 from aes_ros.ros.cdr import PoseArrayEncoder
-from aes_ros.ros.qos import LATEST_COMMAND, SENSOR
+from aes_ros.ros.qos import LATEST_COMMAND, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import spin
 from aes_ros.scenario import load
 from sim_bridge.world import MODES, World
@@ -54,11 +53,6 @@ REPUBLISH_AFTER = 1.0
 
 #: At most this many cmd_vel latencies are kept between two /sim/stats calls.
 MAX_LATENCY_SAMPLES = 2_000_000
-
-#: /clock: reliable keep-last, which every /clock subscriber (rclpy's is best-effort) accepts.
-CLOCK_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE
-)
 
 
 def _float_param(description: str, low: float, high: float, read_only: bool = False):
@@ -144,8 +138,8 @@ class SimBridgeNode(Node):
         self.publish_wall = self.last_publish  # when the newest state went out [s, monotonic]
         self._reset_stats()
 
-        self.clock_pub = self.create_publisher(ClockMsg, "/clock", CLOCK_QOS)
-        self.poses_pub = self.create_publisher(PoseArray, "/swarm/poses", SENSOR)
+        self.clock_pub = self.create_publisher(ClockMsg, "/clock", STREAM_WRITER)
+        self.poses_pub = self.create_publisher(PoseArray, "/swarm/poses", STREAM_WRITER)
         # Every QoS event handler is one more entity in each wait of the executor;
         # robot 0's report incompatible QoS (all robots are alike), the others none.
         quiet_pub = PublisherEventCallbacks(use_default_callbacks=False)

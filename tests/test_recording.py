@@ -77,6 +77,8 @@ def test_launch_records_every_message_and_closes_the_bag_on_a_signal(
     log = spawn.procs[-1][1]
     assert wait_for(lambda: "robots moving" in log.read_text(), 180.0), log.read_text()
     assert wait_for(lambda: bag.stat().st_size > 50_000, 60.0)  # a few chunks in
+    recorder_log = out / "logs" / "recorder.log"
+    assert wait_for(lambda: "receiving /swarm/alignment" in recorder_log.read_text(), 60.0)
     os.killpg(launcher.pid, sig)
     assert launcher.wait(60) == 0, log.read_text()
     assert_no_orphans(ros_env)

@@ -475,6 +475,23 @@ class _Monitor:
     def spin_once(self, timeout: float) -> None:
         self.executor.spin_once(timeout_sec=timeout)
 
+    def pause_bridge(self, paused: bool, timeout: float) -> None:
+        """Call the bridge's ``/sim/pause``; raises LaunchError if it does not answer."""
+        from std_srvs.srv import SetBool
+
+        client = self.node.create_client(SetBool, "/sim/pause")
+        try:
+            if not client.wait_for_service(timeout_sec=timeout):
+                raise LaunchError(f"sim_bridge offers no /sim/pause within {timeout:.0f} s")
+            future = client.call_async(SetBool.Request(data=paused))
+            deadline = time.monotonic() + timeout
+            while not future.done():
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"/sim/pause did not answer within {timeout:.0f} s")
+                self.spin_once(0.05)
+        finally:
+            self.node.destroy_client(client)
+
     def close(self) -> None:
         import rclpy
 
@@ -561,8 +578,18 @@ class Launcher:
             self._wait_first_poses(bridge)
             if self.recorder is not None:
                 self._wait_log(self.recorder, "receiving /swarm/poses", cfg.start_timeout)
+                # Paused until the recorder has found every robot's and the
+                # supervisor's publishers: on a loaded machine discovery can take
+                # seconds, and what a writer sends before the reader knows it is
+                # lost for the bag (only its last few are kept for late readers).
+                self.monitor.pause_bridge(True, cfg.start_timeout)
             for name, argv in nodes[1:]:
                 self.procs.start(name, argv)
+            if self.recorder is not None:
+                from aes_ros.ros.recorder import MATCHED_ALL
+
+                self._wait_log(self.recorder, MATCHED_ALL, cfg.start_timeout)
+                self.monitor.pause_bridge(False, cfg.start_timeout)
         else:
             # Everything at once: each process spends ~1 s starting Python and
             # building its nodes, and discovery overlaps; robots move at their first

@@ -30,14 +30,16 @@ COMMAND = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
-#: The robots' cmd_vel publishers: COMMAND, and the last 10 commands are kept for
-#: readers that ask for them (transient-local). Only the recorder does: it would
-#: otherwise miss the first commands of a robot published before discovery matched
-#: the two (tests/test_recording.py). Volatile readers (the bridge, a motor
-#: driver) match as before and never receive old commands.
+#: The robots' cmd_vel publishers: COMMAND, with the last 100 commands kept (a
+#: reader that missed a burst of datagrams, a recorder on a loaded machine, is
+#: resent them; with 10 a burst of 19 was lost) and given to late readers that ask
+#: for them (transient-local). Only the recorder does: it would otherwise miss
+#: the first commands of a robot published before discovery matched the two
+#: (tests/test_recording.py). Volatile readers (the bridge, a motor driver) match
+#: as before and never receive old commands.
 COMMAND_KEPT = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=10,
+    depth=100,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
@@ -64,12 +66,24 @@ LATCHED = QoSProfile(
 
 #: The supervisor's publishers of those topics. Same contract as LATCHED (a late
 #: reader of depth 1 still gets only the newest value), but the writer keeps its
-#: last 20 samples until acknowledged: with a history of 1 a sample is replaced by
-#: the next one before a reader that missed a datagram (a busy recorder) can ask for
-#: it again, and the bag would lack it (tests/test_recording.py).
+#: last 100 samples: with a history of 1 a sample is replaced by the next one
+#: before a reader that missed a datagram (a busy recorder) can ask for it again,
+#: and the bag would lack it (tests/test_recording.py).
 LATCHED_WRITER = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
-    depth=20,
+    depth=100,
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+#: The bridge's publishers of /clock and /swarm/poses. Every reader in the system
+#: reads them best-effort (SENSOR: a late pose is worthless to a controller; rclpy's
+#: /clock subscription is best-effort too), which a reliable writer serves just the
+#: same. The recorder reads them reliably, so that a datagram it missed while busy
+#: is resent instead of leaving a step out of the bag (tests/test_recording.py).
+STREAM_WRITER = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=50,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
 )

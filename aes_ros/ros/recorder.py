@@ -51,13 +51,13 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosidl_adapter.parser import parse_message_string
 
-from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, LATCHED, SENSOR
+from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, LATCHED, STREAM_WRITER
 from aes_ros.ros.spin import spin
 
 #: Topics recorded from the start: name -> (type, QoS of its publisher, SPEC §7).
 KNOWN_TOPICS: dict[str, tuple[str, QoSProfile]] = {
-    "/clock": ("rosgraph_msgs/msg/Clock", SENSOR),
-    "/swarm/poses": ("geometry_msgs/msg/PoseArray", SENSOR),
+    "/clock": ("rosgraph_msgs/msg/Clock", STREAM_WRITER),
+    "/swarm/poses": ("geometry_msgs/msg/PoseArray", STREAM_WRITER),
     "/swarm/cmd": ("geometry_msgs/msg/Twist", COMMAND),
     "/swarm/desired_velocity": ("geometry_msgs/msg/TwistStamped", LATCHED),
     "/swarm/rotation_center": ("geometry_msgs/msg/PointStamped", LATCHED),
@@ -71,6 +71,9 @@ CMD_VEL_TYPE = "geometry_msgs/msg/Twist"
 RECORDED = re.compile(r"^(/clock|/swarm/.+|/mona_\d+/cmd_vel)$")
 #: Separator between the definitions of a schema (rosbag2 / ROS 1 style).
 SEPARATOR = "=" * 80
+#: Printed once every robot's cmd_vel and every supervisor topic has a matched
+#: publisher (with ``--robots N``); the launcher starts the swarm only then.
+MATCHED_ALL = "found the publishers of every robot and of the supervisor"
 #: Deeper queues than the publishers' so that a busy recorder loses nothing.
 QUEUE_DEPTH = 100
 #: Wall seconds between chunk flushes: what a recorder killed with SIGKILL can lose.
@@ -256,6 +259,12 @@ class RecorderNode(Node):
         if discover:
             self.create_timer(1.0, self.on_discover)
         self.create_timer(FLUSH_PERIOD, self.bag.flush)
+        self._awaited = [
+            topic
+            for topic in self._subs
+            if topic.endswith("/cmd_vel") or KNOWN_TOPICS.get(topic, ("", None))[1] is LATCHED
+        ]
+        self._match_timer = self.create_timer(0.1, self.on_check_matched) if num_robots else None
 
     def _subscribe(self, topic: str, type_name: str, qos: QoSProfile) -> None:
         pkg, _, name = type_name.partition("/msg/")
@@ -271,6 +280,13 @@ class RecorderNode(Node):
             self._heard.add(topic)
             # The launcher waits for this line before it starts the robots.
             print(f"receiving {topic}", flush=True)
+
+    def on_check_matched(self) -> None:
+        """Say :data:`MATCHED_ALL` once the robots and the supervisor are all found."""
+        self._awaited = [t for t in self._awaited if self._subs[t].get_publisher_count() == 0]
+        if not self._awaited:
+            print(MATCHED_ALL, flush=True)
+            self._match_timer.cancel()
 
     def take_remaining(self) -> int:
         """Write every message the subscriptions still hold; returns how many.
