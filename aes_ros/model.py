@@ -278,3 +278,52 @@ def robot_command(
     if limits is not None:
         u, turn_rate = clip_commands(u, turn_rate, *limits)
     return RobotCommand(float(u), float(turn_rate), force)
+
+
+def robot_commands(
+    positions: np.ndarray,
+    headings: np.ndarray,
+    neighbor_positions: np.ndarray,
+    rest_lengths: np.ndarray,
+    gains: Gains,
+    directions: np.ndarray,
+    omegas: np.ndarray,
+    centers: np.ndarray,
+    dt: np.ndarray,
+    noise: Noise | None = None,
+    limits: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`robot_command` for R robots at once, each with its own inputs.
+
+    A process running many robots (``aes-robot-host``) evaluates them in one call:
+    the same E1–E6 functions on (R, ...) arrays instead of R calls on scalars,
+    which were the larger part of a robot's step. Gives bit for bit what R calls
+    of :func:`robot_command` give with the same inputs (tests/test_model.py).
+
+    Parameters
+    ----------
+    positions : (R, 2) own positions [m]. headings : (R,) θ [rad].
+    neighbor_positions : (R, K, 2) [m], padded. rest_lengths : (R, K) l_ij [m];
+        ``<= 0`` marks padding.
+    gains : a :class:`Gains` whose fields are (R,) arrays.
+    directions : (R, 2) v_d. omegas : (R,) ω [rad/s]. centers : (R, 2) x_c [m].
+    dt : (R,) Δt [s].
+    noise : (xi_x, xi_y, xi_theta), each (R,), drawn per robot with
+        :func:`draw_noise` (zeros for a robot without noise), or None.
+    limits : (R, 2) (max_linear_speed, max_angular_speed), ``inf`` = not clipped;
+        None = nothing clipped.
+
+    Returns
+    -------
+    u : (R,) [m/s]; turn_rate : (R,) [rad/s]; forces : (R, 2) noise-free f_i (E4).
+    """
+    offsets = neighbor_positions - positions[:, None, :]
+    force = spring_force(offsets, rest_lengths, gains.k[:, None])
+    force = force + linear_force(directions, gains.w_l[:, None])
+    rotation = rotation_forces(positions[:, None, :], centers, 1.0, 1.0)[:, 0]
+    rotation = (gains.w_r * omegas)[:, None] * rotation
+    force = force + np.where((omegas != 0.0)[:, None], rotation, 0.0)
+    u, turn_rate = motion_commands(force, headings, gains, dt, noise)
+    if limits is not None:
+        u, turn_rate = clip_commands(u, turn_rate, limits[:, 0], limits[:, 1])
+    return u, turn_rate, force

@@ -19,6 +19,8 @@ so ``-p alpha:=0.1 -p d_r:=0.0`` changes all robots of this host.
 from __future__ import annotations
 
 import sys
+from dataclasses import fields
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -31,6 +33,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool
 
+from aes_ros.model import Gains, RobotCommand, draw_noise, robot_command, robot_commands
 from aes_ros.params import ParameterError
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_pose_array
@@ -38,7 +41,7 @@ from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import LATCHED, SENSOR
 from aes_ros.ros.spin import spin
 from aes_ros.scenario import Scenario
-from robot_node.node import NEIGHBOR_SOURCES, STARTUP_ERRORS, RobotNode
+from robot_node.node import NEIGHBOR_SOURCES, STARTUP_ERRORS, ControlInput, RobotNode
 
 NODE_NAME = "robot_host"
 
@@ -144,8 +147,10 @@ class RobotHostNode(Node):
             return
         centroid = xy.mean(axis=0) if len(xy) else np.zeros(2)
         stamp = Time(sec=sec, nanosec=nanosec)
-        for robot in self.robots:
-            robot.on_swarm_poses(stamp, xy, yaw, centroid)
+        jobs = [robot.control_input(stamp, xy, yaw, centroid) for robot in self.robots]
+        jobs = [job for job in jobs if job is not None]
+        for job, result in zip(jobs, evaluate(jobs), strict=True):
+            job.robot.publish_command(job, result)
 
     def on_desired_velocity(self, msg: TwistStamped) -> None:
         for robot in self.robots:
@@ -163,6 +168,60 @@ class RobotHostNode(Node):
         for robot in self.robots:
             robot.destroy_node()
         super().destroy_node()
+
+
+_GAIN_FIELDS = tuple(f.name for f in fields(Gains))
+
+
+@lru_cache(maxsize=256)
+def _gain_values(gains: Gains) -> tuple[float, ...]:
+    return tuple(getattr(gains, name) for name in _GAIN_FIELDS)
+
+
+def evaluate(jobs: list[ControlInput]) -> list[RobotCommand]:
+    """The control law of every job, in one :func:`aes_ros.model.robot_commands` call.
+
+    The robots of a host all act on the same ``/swarm/poses`` message; evaluated
+    together the numpy work is done once per message instead of once per robot
+    (bench/bench_ros.py). Each robot's noise is still drawn from its own
+    generator in the same order, so the commands are those of
+    :func:`aes_ros.model.robot_command` for each job, bit for bit.
+    """
+    if len(jobs) <= 1:
+        return [robot_command(*job.arguments()) for job in jobs]
+    r = len(jobs)
+    k = max(len(job.rest_lengths) for job in jobs)
+    positions, headings = np.empty((r, 2)), np.empty(r)
+    neighbors, rest = np.zeros((r, k, 2)), np.zeros((r, k))  # rest 0 = padding
+    gain_rows = np.empty((r, len(_GAIN_FIELDS)))
+    directions, omegas, centers = np.empty((r, 2)), np.empty(r), np.empty((r, 2))
+    dt, limits = np.empty(r), np.full((r, 2), np.inf)
+    noise = (np.zeros(r), np.zeros(r), np.zeros(r))
+    for row, job in enumerate(jobs):
+        n = len(job.rest_lengths)
+        positions[row] = job.position
+        headings[row] = job.heading
+        neighbors[row, :n] = job.neighbor_positions
+        rest[row, :n] = job.rest_lengths
+        gain_rows[row] = _gain_values(job.gains)
+        command = job.command
+        directions[row] = command.direction
+        omegas[row] = command.omega
+        centers[row] = job.position if command.center is None else command.center
+        dt[row] = job.dt
+        if job.limits is not None:
+            limits[row] = job.limits
+        if job.rng is not None:
+            xi = draw_noise(job.rng)
+            noise[0][row], noise[1][row], noise[2][row] = xi[0], xi[1], xi[2]
+    gains = Gains(**{name: gain_rows[:, col] for col, name in enumerate(_GAIN_FIELDS)})
+    u, turn_rate, forces = robot_commands(
+        positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits
+    )
+    return [
+        RobotCommand(linear, angular, force)
+        for linear, angular, force in zip(u.tolist(), turn_rate.tolist(), forces, strict=True)
+    ]
 
 
 def make_robot(

@@ -27,6 +27,7 @@ import re
 import sys
 import time
 import weakref
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -43,7 +44,7 @@ from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool
 
-from aes_ros.model import Gains, SwarmCommand, robot_command
+from aes_ros.model import Gains, RobotCommand, SwarmCommand, robot_command
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.conversions import (
@@ -105,6 +106,31 @@ def convert_poses(msg: PoseArray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     xy, yaw = poses_to_arrays(msg)
     centroid = xy.mean(axis=0) if len(xy) else np.zeros(2)
     return xy, yaw, centroid
+
+
+@dataclass
+class ControlInput:
+    """What the control law of one robot needs for one step (:func:`robot_command`'s
+    arguments), and where its result goes."""
+
+    robot: RobotNode
+    stamp: Time
+    position: np.ndarray  #: (2,) [m]
+    heading: float  #: [rad]
+    neighbor_positions: np.ndarray  #: (K, 2) [m], neighbours heard from
+    rest_lengths: np.ndarray  #: (K,) [m]
+    gains: Gains
+    command: SwarmCommand  #: center set, or None for "own position" (no rotation force)
+    dt: float  #: [s]
+    rng: np.random.Generator | None  #: None: noise off
+    limits: tuple[float, float] | None
+
+    def arguments(self) -> tuple:
+        """Positional arguments of :func:`aes_ros.model.robot_command`."""
+        return (
+            self.position, self.heading, self.neighbor_positions, self.rest_lengths,
+            self.gains, self.command, self.dt, self.rng, self.limits,
+        )  # fmt: skip
 
 
 class RobotNode(Node):
@@ -346,6 +372,8 @@ class RobotNode(Node):
             self._neighbors = np.array(sheet[0], dtype=np.int64)
             # NaN marks a rest length still to be latched from the first distance seen.
             self._rest = np.array(sheet[1] or [np.nan] * len(sheet[0]), dtype=float)
+            self._max_neighbor = int(self._neighbors.max()) if self._neighbors.size else -1
+            self._all_latched = not np.isnan(self._rest).any()
         seeding = (p["seed"], p["robot_id"])
         if seeding != self._applied.get("seeding"):
             seed = p["seed"]
@@ -436,21 +464,32 @@ class RobotNode(Node):
         self, stamp: Time, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
     ) -> None:
         """One ``/swarm/poses`` message, already converted: act if the source is poses."""
+        job = self.control_input(stamp, positions, headings, centroid)
+        if job is not None:
+            self.publish_command(job, robot_command(*job.arguments()))
+
+    def control_input(
+        self, stamp: Time, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
+    ) -> ControlInput | None:
+        """The inputs of the control law for one ``/swarm/poses`` message (None: no
+        command this time). A host evaluates those of all its robots at once."""
         if self._source != "poses":
-            return
+            return None
         stamp_ns = stamp_to_ns(stamp)
         self._remember_centroid(stamp_ns, centroid)
         i, n = self._robot_id, len(positions)
         if i >= n:
             self._warn(f"dropped /swarm/poses: {n} poses, no pose for robot_id {i}")
-            return
+            return None
         neighbors = self._neighbors
         slots = None
-        if neighbors.size and neighbors.max() >= n:
+        if self._max_neighbor >= n:
             self._warn(f"/swarm/poses has {n} poses: neighbours {neighbors.tolist()} left out")
             slots = np.flatnonzero(neighbors < n)
             neighbors = neighbors[slots]
-        self._act(stamp, stamp_ns, positions[i], headings[i], slots, positions[neighbors], centroid)
+        return self._control_input(
+            stamp, stamp_ns, positions[i], headings[i], slots, positions[neighbors], centroid
+        )
 
     def on_odom(self, msg: Odometry) -> None:
         """Own odometry (``odom`` source): act with the neighbours heard from recently."""
@@ -465,7 +504,7 @@ class RobotNode(Node):
             if heard is not None and stamp_ns - heard[0] <= self._timeout_ns:
                 slots.append(slot)
                 positions.append(heard[1:])
-        self._act(
+        job = self._control_input(
             msg.header.stamp,
             stamp_ns,
             np.array([x, y]),
@@ -474,6 +513,8 @@ class RobotNode(Node):
             np.array(positions, dtype=float).reshape(-1, 2),
             None,
         )
+        if job is not None:
+            self.publish_command(job, robot_command(*job.arguments()))
 
     def on_neighbor_odom(self, j: int, msg: Odometry) -> None:
         try:
@@ -532,7 +573,7 @@ class RobotNode(Node):
             self._follow_centroid = same_stamp and _same_point(centroid, self._center_point)
             self._center_pending = False
 
-    def _act(
+    def _control_input(
         self,
         stamp: Time,
         stamp_ns: int,
@@ -541,8 +582,9 @@ class RobotNode(Node):
         slots: np.ndarray | None,
         neighbor_positions: np.ndarray,
         centroid: np.ndarray | None,
-    ) -> None:
-        """Compute and publish this robot's command for one new own pose."""
+    ) -> ControlInput:
+        """The control law's inputs for one new own pose (liveness, latched rest
+        lengths, rotation centre and Δt applied)."""
         if self._last_stamp is not None:
             if stamp_ns > self._last_stamp:
                 self._dt = (stamp_ns - self._last_stamp) * 1e-9
@@ -561,8 +603,8 @@ class RobotNode(Node):
                 slots = np.flatnonzero(keep) if slots is None else slots[keep]
                 neighbor_positions = neighbor_positions[keep]
         rest = self._rest if slots is None else self._rest[slots]
-        unset = np.isnan(rest)
-        if unset.any():  # latch l_ij = the distance at first sight
+        if not self._all_latched and (unset := np.isnan(rest)).any():
+            # latch l_ij = the distance at first sight
             dist = np.hypot(*(neighbor_positions[unset] - position).T)
             rest = rest.copy()
             rest[unset] = dist
@@ -570,6 +612,7 @@ class RobotNode(Node):
                 self._rest = rest
             else:
                 self._rest[slots] = rest
+            self._all_latched = not np.isnan(self._rest).any()
         if self._follow_centroid and centroid is not None:
             center = centroid
         else:
@@ -579,22 +622,21 @@ class RobotNode(Node):
         )
         gains = self._gains
         rng = self._rng if (gains.d_r > 0.0 or gains.d_theta > 0.0) else None
-        result = robot_command(
-            position,
-            heading,
-            neighbor_positions,
-            rest,
-            gains,
-            command,
-            self._dt,
-            rng=rng,
-            limits=self._limits,
-        )
+        return ControlInput(
+            self, stamp, position, heading, neighbor_positions, rest, gains, command,
+            self._dt, rng, self._limits,
+        )  # fmt: skip
+
+    def publish_command(self, job: ControlInput, result: RobotCommand) -> None:
+        """Publish ``cmd_vel`` (and ``aes_force`` if heard) for one evaluated input."""
+        force = result.force
         if not (
-            np.isfinite(result.linear)
-            and np.isfinite(result.angular)
-            and np.all(np.isfinite(result.force))
+            math.isfinite(result.linear)
+            and math.isfinite(result.angular)
+            and math.isfinite(force[0])
+            and math.isfinite(force[1])
         ):  # cannot happen with inputs that passed the conversions; never publish it
+            stamp_ns = stamp_to_ns(job.stamp)
             self._warn(f"no command at t={stamp_ns * 1e-9:.2f} s: the control law is not finite")
             return
         # One Twist per robot, refilled: building a fresh message costs a third of
@@ -605,7 +647,7 @@ class RobotNode(Node):
         )
         self._cmd_pub.publish(cmd)
         if self._force_pub.get_subscription_count():  # for inspection: skip when unheard
-            self._force_pub.publish(vector3_stamped(result.force, stamp, "odom"))
+            self._force_pub.publish(vector3_stamped(force, job.stamp, "odom"))
         self.published += 1
 
     def _warn(self, text: str) -> None:

@@ -519,3 +519,52 @@ def test_lockstep_with_supervisor_equals_offline_model(spawn, driver):
     assert len(centers) > 0  # the supervisor was publishing the live centroid
     assert np.max(np.abs(xy - ref_xy)) < 1e-9
     assert np.max(np.abs(yaw - ref_yaw)) < 1e-9
+
+
+def test_host_evaluates_its_robots_at_once_exactly_as_one_by_one() -> None:
+    """``aes-robot-host`` evaluates all its robots in one batched call: the commands and
+    forces are bit for bit those of robot_command() per robot, with neighbour counts,
+    gains, noise, limits and rotation centres differing from robot to robot."""
+    from robot_node.host import evaluate
+    from robot_node.node import ControlInput
+
+    rng = np.random.default_rng(3)
+
+    def jobs() -> list[ControlInput]:
+        out = []
+        for r in range(7):
+            k = [0, 1, 3, 6, 4, 2, 6][r]
+            gains = Gains(alpha=0.01 * (r + 1), beta=0.5 + r / 10, k=1.0 + r, d_r=0.1 * (r % 3))
+            gains = Gains(**{**gains.__dict__, "d_theta": 0.02 * (r % 2)})
+            noisy = gains.d_r > 0 or gains.d_theta > 0
+            center = None if r == 4 else (0.3 * r, -0.2)
+            out.append(
+                ControlInput(
+                    None,
+                    None,
+                    positions[r],
+                    headings[r],
+                    neighbours[r][:k],
+                    rests[r][:k],
+                    gains,
+                    SwarmCommand((-1.0, 0.2 * r), [0.0, 0.4, -0.7][r % 3], center),
+                    0.02 + 0.01 * r,
+                    np.random.default_rng(r) if noisy else None,
+                    (0.05, 1.0) if r % 2 else None,
+                )
+            )
+        return out
+
+    positions = rng.normal(size=(7, 2))
+    headings = rng.uniform(-np.pi, np.pi, 7)
+    neighbours = rng.normal(size=(7, 6, 2))
+    rests = rng.uniform(0.1, 0.5, (7, 6))
+    rests[3, 2] = 0.0  # a rest length latched on top of its neighbour
+    batch_jobs, single_jobs = jobs(), jobs()
+    for _ in range(3):  # each robot's generator advances alike, step after step
+        batch = evaluate(batch_jobs)
+        single = [robot_command(*job.arguments()) for job in single_jobs]
+        for a, b in zip(batch, single, strict=True):
+            assert (a.linear, a.angular) == (b.linear, b.angular)
+            assert np.array_equal(a.force, b.force)
+    assert len({round(c.force[0], 9) for c in batch}) == 7  # the inputs really differ
