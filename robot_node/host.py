@@ -24,13 +24,10 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool
 
 from aes_ros.model import Gains, RobotCommand, draw_noise, robot_command, robot_commands
@@ -39,9 +36,9 @@ from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import LATCHED, SENSOR
-from aes_ros.ros.spin import spin
+from aes_ros.ros.spin import run_node_process
 from aes_ros.scenario import Scenario
-from robot_node.node import NEIGHBOR_SOURCES, STARTUP_ERRORS, ControlInput, RobotNode
+from robot_node.node import NEIGHBOR_SOURCES, ControlInput, RobotNode
 
 NODE_NAME = "robot_host"
 
@@ -88,10 +85,8 @@ class RobotHostNode(Node):
         bad = [i for i in ids if not 0 <= i < n]
         if bad or len(set(ids)) != len(ids):
             raise ParameterError(f"robot_ids: {ids} must be distinct ids in [0, {n - 1}]")
-        if source not in NEIGHBOR_SOURCES:
-            raise ParameterError(
-                f"neighbor_source: {source!r} is not one of {', '.join(NEIGHBOR_SOURCES)}"
-            )
+        if (reason := rp.choice_error("neighbor_source", source, NEIGHBOR_SOURCES)) is not None:
+            raise ParameterError(reason)
         self.robots: list[RobotNode] = []
         for i in ids:
             keep = table[i] >= 0
@@ -260,22 +255,7 @@ def make_robot(
 
 def main(args: list[str] | None = None) -> int:
     """``aes-robot-host``: the robots of ``robot_ids`` in this process."""
-    host = None
-    try:
-        # Inside the try: a bad --params-file is a startup error, not a traceback.
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        host = RobotHostNode()
-        spin([host, *host.robots])
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except STARTUP_ERRORS as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
-        return 1
-    finally:
-        if host is not None:
-            host.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_process(NODE_NAME, args, RobotHostNode, lambda host: [host, *host.robots])
 
 
 if __name__ == "__main__":

@@ -35,13 +35,8 @@ import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped, Vector3Stamped
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool
 
 from aes_ros.model import Gains, RobotCommand, SwarmCommand, robot_command
@@ -58,11 +53,10 @@ from aes_ros.ros.conversions import (
     vector3_stamped,
 )
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, LATCHED, SENSOR
-from aes_ros.ros.spin import spin
+from aes_ros.ros.spin import run_node_process
 from aes_ros.scenario import Scenario
 
 NODE_NAME = "aes_robot"
-RCLError = rclpy_implementation.RCLError
 #: Logs the message counts at shutdown (a logger of no node: no /rosout publisher).
 COUNT_LOGGER = rclpy.logging.get_logger("published")
 #: Δt [s] for the noise until the second own pose gives the real period (20 Hz).
@@ -232,11 +226,7 @@ class RobotNode(Node):
             ),
         )
         self._fill_sheet(scen)
-        reason = self._check({})
-        if reason is not None:
-            raise ParameterError(reason)
-        self.add_on_set_parameters_callback(self.on_set_parameters)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        rp.guard_parameters(self, self._check, self._apply_parameters)
 
         self._cmd_pub = self.create_publisher(Twist, "cmd_vel", COMMAND_KEPT)
         self._cmd_msg = unicycle_twist(0.0, 0.0)
@@ -344,22 +334,7 @@ class RobotNode(Node):
         low, high = REST_LENGTH_RANGE
         if not all(low <= r <= high for r in rest):  # also false for NaN
             return f"rest_lengths: {rest} must all be in [{low:g}, {high:g}] m"
-        if value("neighbor_source") not in NEIGHBOR_SOURCES:
-            return (
-                f"neighbor_source: {value('neighbor_source')!r} is not one of "
-                f"{', '.join(NEIGHBOR_SOURCES)}"
-            )
-        return None
-
-    def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Cross-field check of a parameter set (rclpy already checked types and ranges)."""
-        reason = self._check({p.name: p.value for p in params})
-        if reason is not None:
-            return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def on_parameters_set(self, params: list[Parameter]) -> None:
-        self._apply_parameters()
+        return rp.choice_error("neighbor_source", value("neighbor_source"), NEIGHBOR_SOURCES)
 
     def _apply_parameters(self) -> None:
         """Read the parameters into the controller's state (and fix subscriptions)."""
@@ -682,31 +657,9 @@ def _same_point(a: np.ndarray, b: np.ndarray | None) -> bool:
     return b is not None and bool(np.all(np.abs(a - b) <= CENTROID_MATCH_TOL))
 
 
-STARTUP_ERRORS = (
-    ParameterError,
-    InvalidParameterValueException,
-    InvalidParameterTypeException,
-    RCLError,  # e.g. a --params-file that is missing or not valid YAML
-)
-
-
 def main(args: list[str] | None = None) -> int:
     """``aes-robot-node``: one robot in this process."""
-    node = None
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        node = RobotNode()
-        spin([node])
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except STARTUP_ERRORS as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_process(NODE_NAME, args, RobotNode)
 
 
 if __name__ == "__main__":

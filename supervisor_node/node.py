@@ -30,13 +30,8 @@ import numpy as np
 import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import SetBool
 
@@ -52,10 +47,9 @@ from aes_ros.ros.conversions import (
 )
 from aes_ros.ros.qos import COMMAND, SENSOR
 from aes_ros.ros.qos import LATCHED_WRITER as LATCHED
-from aes_ros.ros.spin import spin
+from aes_ros.ros.spin import run_node_process
 
 NODE_NAME = "supervisor"
-RCLError = rclpy_implementation.RCLError
 CENTER_MODES = ("centroid", "fixed")
 #: Supervisor parameters checked against a PARAMS entry of another name.
 _SPEC_OF = {
@@ -143,11 +137,7 @@ class SupervisorNode(Node):
         self.declare_parameter(
             "enabled", True, rp.bool_descriptor("false: every robot publishes zero cmd_vel")
         )
-        reason = self._check({})
-        if reason is not None:
-            raise ParameterError(reason)
-        self.add_on_set_parameters_callback(self.on_set_parameters)
-        self.add_post_set_parameters_callback(self.on_parameters_set)
+        rp.guard_parameters(self, self._check, self._apply_parameters)
 
         #: Messages published so far, per topic.
         self.published: dict[str, int] = {}
@@ -185,22 +175,7 @@ class SupervisorNode(Node):
                 spec.validate(list(raw) if isinstance(raw, list | tuple) else raw)
             except ParameterError as exc:
                 return f"{name}: {str(exc).partition(': ')[2]}"
-        if value("rotation_center_mode") not in CENTER_MODES:
-            return (
-                f"rotation_center_mode: {value('rotation_center_mode')!r} is not one of "
-                f"{', '.join(CENTER_MODES)}"
-            )
-        return None
-
-    def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Check a parameter set (rclpy already checked types and scalar ranges)."""
-        reason = self._check({p.name: p.value for p in params})
-        if reason is not None:
-            return SetParametersResult(successful=False, reason=reason)
-        return SetParametersResult(successful=True)
-
-    def on_parameters_set(self, params: list[Parameter]) -> None:
-        self._apply_parameters()
+        return rp.choice_error("rotation_center_mode", value("rotation_center_mode"), CENTER_MODES)
 
     def _apply_parameters(self) -> None:
         """Read the parameters; publish whatever part of the command changed."""
@@ -332,26 +307,7 @@ def _changed(old: dict[str, Any], new: dict[str, Any], *names: str) -> bool:
 
 def main(args: list[str] | None = None) -> int:
     """``aes-supervisor``."""
-    node = None
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-        node = SupervisorNode()
-        spin([node])
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (
-        ParameterError,
-        InvalidParameterValueException,
-        InvalidParameterTypeException,
-        RCLError,  # e.g. a --params-file that is missing or not valid YAML
-    ) as exc:
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"cannot start: {exc}")
-        return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    return run_node_process(NODE_NAME, args, SupervisorNode)
 
 
 if __name__ == "__main__":

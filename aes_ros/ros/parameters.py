@@ -12,10 +12,15 @@ friends, which format descriptions the same way.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import (
+    FloatingPointRange,
+    IntegerRange,
+    ParameterDescriptor,
+    SetParametersResult,
+)
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -190,3 +195,36 @@ def load_scenario(name: str, num_robots: int) -> scenario_mod.Scenario:
     """The scenario ``name`` (setup or path), on ``num_robots`` robots if > 0."""
     scen = scenario_mod.load(name)
     return scen.with_robots(num_robots) if num_robots > 0 else scen
+
+
+def guard_parameters(
+    node: Node,
+    check: Callable[[dict[str, Any]], str | None],
+    apply: Callable[[], None],
+) -> None:
+    """Reject bad parameter sets of ``node`` with a reason; ``apply`` good ones.
+
+    ``check(updates)`` returns why the node's parameters with ``updates`` applied
+    are invalid, or None (rclpy has already checked types and the descriptors'
+    ranges; this is for the cross-field rules). It is first run on the declared
+    values: a bad start raises ParameterError. A rejected set leaves every value
+    as it was; after an accepted one, ``apply()`` reads the parameters again.
+    """
+    reason = check({})
+    if reason is not None:
+        raise ParameterError(reason)
+
+    def on_set(params: list[Parameter]) -> SetParametersResult:
+        reason = check({p.name: p.value for p in params})
+        return SetParametersResult(successful=reason is None, reason=reason or "")
+
+    node.add_on_set_parameters_callback(on_set)
+    node.add_post_set_parameters_callback(lambda _params: apply())
+
+
+def choice_error(name: str, value: Any, choices: Iterable[str]) -> str | None:
+    """The reason why ``value`` of parameter ``name`` is not one of ``choices``, or None."""
+    choices = tuple(choices)
+    if value in choices:
+        return None
+    return f"{name}: {value!r} is not one of {', '.join(choices)}"

@@ -17,18 +17,32 @@ from __future__ import annotations
 import signal
 import threading
 import time
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
 from rclpy.experimental import EventsExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.qos import ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+
+from aes_ros.params import ParameterError
 
 #: Longest a spin call blocks before the stop check [s] (the shutdown latency).
 SPIN_SLICE = 0.25
 #: Longest the whole process waits at exit for reliable readers to acknowledge [s]
 #: (on a loaded machine acknowledgements can take a second; a dead reader never sends one).
 FLUSH_TIMEOUT = 3.0
+#: Errors that mean a node cannot start with what it was given: logged, exit code 1.
+STARTUP_ERRORS = (
+    ParameterError,
+    InvalidParameterValueException,
+    InvalidParameterTypeException,
+    rclpy_implementation.RCLError,  # e.g. a --params-file that is missing or not valid YAML
+)
 #: How long one publisher is waited for in a round of :func:`flush_publishers` [ns].
 FLUSH_POLL_NS = 2_000_000
 
@@ -88,3 +102,35 @@ def flush_publishers(nodes: list[Node], timeout: float) -> bool:
         if pending and time.monotonic() > deadline:
             return False
     return True
+
+
+def run_node_process(
+    name: str,
+    args: Sequence[str] | None,
+    make: Callable[[], Node],
+    spun: Callable[[Node], list[Node]] = lambda node: [node],
+) -> int:
+    """The ``main()`` of a node process: init rclpy without its signal handler,
+    build the node with ``make()``, :func:`spin` ``spun(node)`` until SIGINT or
+    SIGTERM, then destroy the node and shut down.
+
+    Returns the exit code: 0 after a signal, 1 if the node cannot start (a
+    :data:`STARTUP_ERRORS` error, logged as ``cannot start: <reason>`` under
+    ``name``; no traceback).
+    """
+    node = None
+    try:
+        # Inside the try: a bad --params-file is a startup error, not a traceback.
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        node = make()
+        spin(spun(node))
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except STARTUP_ERRORS as exc:
+        rclpy.logging.get_logger(name).fatal(f"cannot start: {exc}")
+        return 1
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
