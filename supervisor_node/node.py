@@ -50,6 +50,8 @@ from aes_ros.ros.qos import LATCHED_WRITER as LATCHED
 from aes_ros.ros.spin import run_node_process
 
 NODE_NAME = "supervisor"
+#: Logged at the first valid /swarm/poses.
+RECEIVING_POSES = "receiving /swarm/poses"
 CENTER_MODES = ("centroid", "fixed")
 #: Supervisor parameters checked against a PARAMS entry of another name.
 _SPEC_OF = {
@@ -261,6 +263,8 @@ class SupervisorNode(Node):
         except BadMessageError as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
             return
+        if self._poses is None:  # the launcher waits for this line (lockstep, recording)
+            self.get_logger().info(RECEIVING_POSES)
         self._poses = (Time(sec=sec, nanosec=nanosec), xy, yaw)
         self._poses_new = True
         if self._centroid_mode:

@@ -12,7 +12,9 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    ``per-core`` (one host per core, robots split evenly; the default) or
    ``per-robot`` (one ``aes-robot-node`` per robot, as on real Monas); all at
    once, except in lockstep or when recording, where the robots start only
-   after the bridge's first poses have reached the launcher and the recorder;
+   after the bridge's first poses have reached the launcher, the supervisor
+   and the recorder, and with a recording the bridge is paused until the
+   recorder has found every robot's and the supervisor's publishers;
 3. watches ``/swarm/poses`` until every robot has moved, then runs for
    ``duration`` seconds of sim time (``/clock``; 0 = until SIGINT/SIGTERM);
 4. stops every process (SIGINT to its group, SIGKILL after ``stop_timeout``),
@@ -572,10 +574,13 @@ class Launcher:
         nodes = commands(cfg, scenario_file, robots_file)
         bridge = self.procs.start(*nodes[0])
         if cfg.lockstep or self.recorder is not None:
-            # The bridge first: the robots start only once the launcher (and the
-            # recorder) receive /swarm/poses, so that no step of a deterministic
-            # run and no message of a recording is missed.
+            # The bridge and the supervisor first: the robots start only once the
+            # launcher, the supervisor (and the recorder) receive /swarm/poses, so
+            # that no step of a deterministic run and no message of a recording is
+            # missed (at full speed a run can be over before a late reader matches).
+            supervisor = self.procs.start(*nodes[1])
             self._wait_first_poses(bridge)
+            self._wait_log(supervisor, "receiving /swarm/poses", cfg.start_timeout)
             if self.recorder is not None:
                 self._wait_log(self.recorder, "receiving /swarm/poses", cfg.start_timeout)
                 # Paused until the recorder has found every robot's and the
@@ -583,7 +588,7 @@ class Launcher:
                 # seconds, and what a writer sends before the reader knows it is
                 # lost for the bag (only its last few are kept for late readers).
                 self.monitor.pause_bridge(True, cfg.start_timeout)
-            for name, argv in nodes[1:]:
+            for name, argv in nodes[2:]:
                 self.procs.start(name, argv)
             if self.recorder is not None:
                 from aes_ros.ros.recorder import MATCHED_ALL
