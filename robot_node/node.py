@@ -439,9 +439,7 @@ class RobotNode(Node):
         self, stamp: Time, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
     ) -> None:
         """One ``/swarm/poses`` message, already converted: act if the source is poses."""
-        job = self.control_input(stamp, positions, headings, centroid)
-        if job is not None:
-            self.publish_command(job, robot_command(*job.arguments()))
+        self._act(self.control_input(stamp, positions, headings, centroid))
 
     def control_input(
         self, stamp: Time, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
@@ -479,17 +477,17 @@ class RobotNode(Node):
             if heard is not None and stamp_ns - heard[0] <= self._timeout_ns:
                 slots.append(slot)
                 positions.append(heard[1:])
-        job = self._control_input(
-            msg.header.stamp,
-            stamp_ns,
-            np.array([x, y]),
-            yaw,
-            np.array(slots, dtype=np.int64),
-            np.array(positions, dtype=float).reshape(-1, 2),
-            None,
+        self._act(
+            self._control_input(
+                msg.header.stamp,
+                stamp_ns,
+                np.array([x, y]),
+                yaw,
+                np.array(slots, dtype=np.int64),
+                np.array(positions, dtype=float).reshape(-1, 2),
+                None,
+            )
         )
-        if job is not None:
-            self.publish_command(job, robot_command(*job.arguments()))
 
     def on_neighbor_odom(self, j: int, msg: Odometry) -> None:
         try:
@@ -601,6 +599,11 @@ class RobotNode(Node):
             self, stamp, position, heading, neighbor_positions, rest, gains, command,
             self._dt, rng, self._limits,
         )  # fmt: skip
+
+    def _act(self, job: ControlInput | None) -> None:
+        """Evaluate the control law for one input and publish the command."""
+        if job is not None:
+            self.publish_command(job, robot_command(*job.arguments()))
 
     def publish_command(self, job: ControlInput, result: RobotCommand) -> None:
         """Publish ``cmd_vel`` (and ``aes_force`` if heard) for one evaluated input."""

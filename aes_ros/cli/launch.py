@@ -17,39 +17,12 @@ every process and writes the same outputs as ``aes-swarm simulate``.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
 
-from aes_ros.cli.simulate import _positive_int, add_scenario_options, load_scenario
+from aes_ros.cli.simulate import add_scenario_options, load_scenario, number_type
 from aes_ros.params import ParameterError
-
-
-def _nonneg_float(name: str):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not a number") from None
-        if not (math.isfinite(value) and value >= 0):
-            raise argparse.ArgumentTypeError(f"{name}: need a number >= 0, got {text}")
-        return value
-
-    return parse
-
-
-def _finite_float(name: str):
-    def parse(text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not a number") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not finite")
-        return value
-
-    return parse
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -65,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     )
     add_scenario_options(p)
     p.add_argument(
-        "--robots", type=_positive_int("--robots"), default=None,
+        "--robots", type=number_type("--robots", int, 1), default=None,
         help="number of robots N (a near-square grid; default: the scenario's formation)",
     )  # fmt: skip
     p.add_argument(
@@ -81,7 +54,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors and collisions",
     )  # fmt: skip
     p.add_argument(
-        "--duration", type=_nonneg_float("--duration"), default=None,
+        "--duration", type=number_type("--duration", float, 0), default=None,
         help="sim time [s] to run after every robot moves (default: the scenario's "
         "duration; 0: until Ctrl-C)",
     )  # fmt: skip
@@ -97,7 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="each control step waits for every robot's command (deterministic)",
     )  # fmt: skip
     p.add_argument(
-        "--real-time-factor", type=_nonneg_float("--real-time-factor"), default=1.0,
+        "--real-time-factor", type=number_type("--real-time-factor", float, 0), default=1.0,
         metavar="X", help="sim speed relative to wall time (0: as fast as possible; default 1)",
     )  # fmt: skip
     p.set_defaults(func=run_launch)
@@ -111,15 +84,15 @@ def register(sub: argparse._SubParsersAction) -> None:
         "supervisor's current one.",
     )
     s.add_argument(
-        "--direction", nargs=2, type=_finite_float("--direction"), metavar=("X", "Y"),
+        "--direction", nargs=2, type=number_type("--direction"), metavar=("X", "Y"),
         default=None, help="desired direction v_d in the world frame (0 0 switches the drive off)",
     )  # fmt: skip
     s.add_argument(
-        "--omega", type=_finite_float("--omega"), default=None, metavar="W",
+        "--omega", type=number_type("--omega"), default=None, metavar="W",
         help="rotation rate ω [rad/s], counter-clockwise positive",
     )  # fmt: skip
     s.add_argument(
-        "--timeout", type=_nonneg_float("--timeout"), default=15.0,
+        "--timeout", type=number_type("--timeout", float, 0), default=15.0,
         help="give up after this many seconds [s] (default 15)",
     )  # fmt: skip
     s.set_defaults(func=run_steer)

@@ -9,6 +9,7 @@ Example::
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from pathlib import Path
 
@@ -27,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of run 0; run b uses seed + b")
     p.add_argument(
         "--runs",
-        type=_positive_int("--runs"),
+        type=number_type("--runs", int, 1),
         default=1,
         help="independent Monte-Carlo runs B (metrics.csv holds their mean)",
     )
@@ -80,14 +81,20 @@ def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
     return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
 
 
-def _positive_int(name: str):
-    def parse(text: str) -> int:
+def number_type(name: str, kind: type = float, minimum: float | None = None):
+    """An argparse ``type``: a finite number of ``kind`` (int or float), at least
+    ``minimum`` if given; the error names the option ``name`` and what is allowed."""
+    noun = "an integer" if kind is int else "a number"
+
+    def parse(text: str) -> int | float:
         try:
-            value = int(text)
+            value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not an integer") from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"{name}: need an integer >= 1, got {value}")
+            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not {noun}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{name}: {text!r} is not finite")
+        if minimum is not None and value < minimum:
+            raise argparse.ArgumentTypeError(f"{name}: need {noun} >= {minimum:g}, got {text}")
         return value
 
     return parse

@@ -578,9 +578,11 @@ class Launcher:
             # launcher, the supervisor (and the recorder) receive /swarm/poses, so
             # that no step of a deterministic run and no message of a recording is
             # missed (at full speed a run can be over before a late reader matches).
+            from supervisor_node.node import RECEIVING_POSES
+
             supervisor = self.procs.start(*nodes[1])
             self._wait_first_poses(bridge)
-            self._wait_log(supervisor, "receiving /swarm/poses", cfg.start_timeout)
+            self._wait_log(supervisor, RECEIVING_POSES, cfg.start_timeout)
             if self.recorder is not None:
                 self._wait_log(self.recorder, "receiving /swarm/poses", cfg.start_timeout)
                 # Paused until the recorder has found every robot's and the

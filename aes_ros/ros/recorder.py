@@ -259,10 +259,9 @@ class RecorderNode(Node):
         if discover:
             self.create_timer(1.0, self.on_discover)
         self.create_timer(FLUSH_PERIOD, self.bag.flush)
-        self._awaited = [
-            topic
-            for topic in self._subs
-            if topic.endswith("/cmd_vel") or KNOWN_TOPICS.get(topic, ("", None))[1] is LATCHED
+        # The robots' and the supervisor's topics (the latched ones are the supervisor's).
+        self._awaited = [f"/mona_{i}/cmd_vel" for i in range(num_robots)] + [
+            topic for topic, (_, qos) in KNOWN_TOPICS.items() if qos is LATCHED
         ]
         self._match_timer = self.create_timer(0.1, self.on_check_matched) if num_robots else None
 
