@@ -11,7 +11,9 @@ offline simulator calls the same building blocks for every robot at once.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
+from functools import lru_cache
 
 import numpy as np
 
@@ -35,6 +37,10 @@ class Gains:
     def from_mapping(cls, values: dict) -> Gains:
         """Pick the gain fields out of a larger mapping (e.g. a scenario)."""
         return cls(**{f.name: float(values[f.name]) for f in fields(cls) if f.name in values})
+
+
+#: The fields of :class:`Gains`: every gain and noise strength a robot node declares.
+GAIN_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Gains))
 
 
 @dataclass(frozen=True)
@@ -239,6 +245,28 @@ class RobotCommand:
     force: np.ndarray  #: noise-free force f_i (E4), world frame, (2,)
 
 
+@dataclass
+class RobotInput:
+    """The arguments of :func:`robot_command` for one robot and one step."""
+
+    position: np.ndarray  #: (2,) own position [m; odom]
+    heading: float  #: own θ [rad]
+    neighbor_positions: np.ndarray  #: (K, 2) positions of the neighbours heard from [m]
+    rest_lengths: np.ndarray  #: (K,) their rest lengths l_ij [m]
+    gains: Gains
+    command: SwarmCommand  #: ``center`` None: no centre known (no rotation force)
+    dt: float  #: control period Δt [s]
+    rng: np.random.Generator | None  #: noise source; None: noise off
+    limits: tuple[float, float] | None  #: (max_linear_speed, max_angular_speed) or None
+
+    def arguments(self) -> tuple:
+        """Positional arguments of :func:`robot_command`."""
+        return (
+            self.position, self.heading, self.neighbor_positions, self.rest_lengths,
+            self.gains, self.command, self.dt, self.rng, self.limits,
+        )  # fmt: skip
+
+
 def robot_command(
     position: np.ndarray,
     heading: float,
@@ -298,7 +326,7 @@ def robot_commands(
     A process running many robots (``aes-robot-host``) evaluates them in one call:
     the same E1–E6 functions on (R, ...) arrays instead of R calls on scalars,
     which were the larger part of a robot's step. Gives bit for bit what R calls
-    of :func:`robot_command` give with the same inputs (tests/test_model.py).
+    of :func:`robot_command` give with the same inputs (:func:`evaluate_robots`).
 
     Parameters
     ----------
@@ -327,3 +355,54 @@ def robot_commands(
     if limits is not None:
         u, turn_rate = clip_commands(u, turn_rate, limits[:, 0], limits[:, 1])
     return u, turn_rate, force
+
+
+@lru_cache(maxsize=256)
+def _gain_values(gains: Gains) -> tuple[float, ...]:
+    return tuple(getattr(gains, name) for name in GAIN_FIELDS)
+
+
+def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
+    """:func:`robot_command` of every input, in one :func:`robot_commands` call.
+
+    A process running many robots acts on one ``/swarm/poses`` message for all of
+    them; evaluated together, the numpy work is done once per message instead of
+    once per robot. Each robot's noise is still drawn from its own generator in
+    the same order, so the commands are those of :func:`robot_command` for each
+    input, bit for bit (tests/unit/test_model.py).
+    """
+    if len(inputs) <= 1:
+        return [robot_command(*job.arguments()) for job in inputs]
+    r = len(inputs)
+    k = max(len(job.rest_lengths) for job in inputs)
+    positions, headings = np.empty((r, 2)), np.empty(r)
+    neighbors, rest = np.zeros((r, k, 2)), np.zeros((r, k))  # rest 0 = padding
+    gain_rows = np.empty((r, len(GAIN_FIELDS)))
+    directions, omegas, centers = np.empty((r, 2)), np.empty(r), np.empty((r, 2))
+    dt, limits = np.empty(r), np.full((r, 2), np.inf)
+    noise = (np.zeros(r), np.zeros(r), np.zeros(r))
+    for row, job in enumerate(inputs):
+        n = len(job.rest_lengths)
+        positions[row] = job.position
+        headings[row] = job.heading
+        neighbors[row, :n] = job.neighbor_positions
+        rest[row, :n] = job.rest_lengths
+        gain_rows[row] = _gain_values(job.gains)
+        command = job.command
+        directions[row] = command.direction
+        omegas[row] = command.omega
+        centers[row] = job.position if command.center is None else command.center
+        dt[row] = job.dt
+        if job.limits is not None:
+            limits[row] = job.limits
+        if job.rng is not None:
+            xi = draw_noise(job.rng)
+            noise[0][row], noise[1][row], noise[2][row] = xi[0], xi[1], xi[2]
+    gains = Gains(**{name: gain_rows[:, col] for col, name in enumerate(GAIN_FIELDS)})
+    u, turn_rate, forces = robot_commands(
+        positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits
+    )
+    return [
+        RobotCommand(linear, angular, force)
+        for linear, angular, force in zip(u.tolist(), turn_rate.tolist(), forces, strict=True)
+    ]

@@ -3,12 +3,22 @@
 From a trajectory this writes ``trajectory.npz``, ``metrics.csv``,
 ``snapshots.png`` and ``metrics.png`` and returns a one-line summary, so the
 offline simulator and the ROS system report the same things the same way.
+
+``trajectory.npz`` has one layout whichever command wrote it:
+
+- ``times`` : (T,) [s] (sim time for ``launch``);
+- ``positions`` : (B, T, N, 2) [m; odom];
+- ``headings`` : (B, T, N) [rad];
+
+with B the number of runs (``simulate --runs B``; 1 for ``launch``). Read it with
+:func:`load_trajectory`.
 """
 
 from __future__ import annotations
 
 import csv
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +31,21 @@ CSV_COLUMNS = (
     "t", "alignment", "heading_order", "total_force", "centroid_x", "centroid_y",
     "angular_velocity",
 )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A run's samples: times (T,) [s], positions (B, T, N, 2) [m], headings (B, T, N) [rad]."""
+
+    times: np.ndarray
+    positions: np.ndarray
+    headings: np.ndarray
+
+
+def load_trajectory(path: Path) -> Trajectory:
+    """Read a ``trajectory.npz`` written by ``simulate`` or ``launch``."""
+    with np.load(path) as data:
+        return Trajectory(data["times"], data["positions"], data["headings"])
 
 
 def metrics_table(
@@ -37,8 +62,7 @@ def metrics_table(
     """
     _, neighbors, rest = scenario.sheet()
     forces = total_forces(positions, neighbors, rest, scenario.gains, scenario.command)
-    dt = np.diff(times)
-    omega = metrics.rotation_angle(positions[..., :-1, :, :], positions[..., 1:, :, :]) / dt
+    omega = metrics.angular_velocity(positions, np.diff(times))
     omega = np.concatenate([omega[..., :1], omega], axis=-1)
     centroid = positions.mean(axis=-2)
     runs = tuple(range(positions.ndim - 3))
@@ -90,26 +114,26 @@ def write_run_outputs(
 ) -> str:
     """Write trajectory.npz, metrics.csv, snapshots.png and metrics.png; return the summary.
 
-    times : (T,) [s]; positions : (T, N, 2) or (B, T, N, 2) [m]; headings :
-    (T, N) or (B, T, N) [rad]. With B runs, metrics.csv holds the mean over
-    runs and the snapshots show run 0.
+    times : (T,) [s]; positions : (B, T, N, 2) [m]; headings : (B, T, N) [rad]
+    (the layout of ``trajectory.npz``). With B > 1 runs, metrics.csv holds the
+    mean over runs and the snapshots show run 0.
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     positions = np.asarray(positions, dtype=float)
     headings = np.asarray(headings, dtype=float)
-    batched = positions.ndim == 4
+    if positions.ndim != 4 or headings.ndim != 3:
+        raise ValueError(
+            f"positions {positions.shape}, headings {headings.shape}: need (B, T, N, 2), (B, T, N)"
+        )
     np.savez_compressed(out_dir / "trajectory.npz", times=times, positions=positions,
                         headings=headings)  # fmt: skip
     table = metrics_table(times, positions, headings, scenario)
     write_metrics_csv(out_dir / "metrics.csv", table)
-    first_pos = positions[0] if batched else positions
-    first_head = headings[0] if batched else headings
     _, neighbors, _ = scenario.sheet()
-    n = first_pos.shape[1]
-    runs = positions.shape[0] if batched else 1
+    runs, n = positions.shape[0], positions.shape[2]
     title = f"{label}: N = {n}" + (f", run 0 of {runs}" if runs > 1 else "")
-    plots.snapshots(out_dir / "snapshots.png", times, first_pos, first_head, neighbors, title)
+    plots.snapshots(out_dir / "snapshots.png", times, positions[0], headings[0], neighbors, title)
     plots.metrics_plot(
         out_dir / "metrics.png", times, table["alignment"], table["heading_order"],
         table["total_force"], title=label + (f", mean of {runs} runs" if runs > 1 else ""),
