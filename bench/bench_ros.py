@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import json
 import os
 import sys
 import time
@@ -125,40 +124,10 @@ def pss_mb(pid: int) -> float:
     return 0.0
 
 
-def call_stats(launcher, timeout: float = 30.0) -> dict:
-    """Call the bridge's /sim/stats (std_srvs/Trigger) from the launcher's monitor node."""
-    from std_srvs.srv import Trigger
-
-    mon = launcher.monitor
-    client = mon.node.create_client(Trigger, "/sim/stats")
-    try:
-        deadline = time.monotonic() + timeout
-        while not client.service_is_ready():
-            if time.monotonic() > deadline:
-                raise RuntimeError("no /sim/stats service")
-            mon.spin_once(0.05)
-        future = client.call_async(Trigger.Request())
-        while not future.done():
-            if time.monotonic() > deadline:
-                raise RuntimeError("/sim/stats did not answer")
-            mon.spin_once(0.05)
-        return json.loads(future.result().message)
-    finally:
-        mon.node.destroy_client(client)
-
-
-def spin_for(launcher, seconds: float) -> None:
-    """Keep the launcher's monitor (and its liveness checks) going for ``seconds`` of wall time."""
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        launcher.monitor.spin_once(0.05)
-        launcher._check_children()
-
-
 def measure(
     robots: int, rate: float, source: str, layout: str, warmup: float, window: float
 ) -> Row:
-    from aes_ros.ros.launcher import LaunchConfig, Launcher
+    from aes_ros.ros.launch import LaunchConfig, Launcher
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     config = LaunchConfig(
@@ -171,14 +140,14 @@ def measure(
         launcher.start()
         launcher.wait_until_moving()
         start_s = time.monotonic() - t0
-        spin_for(launcher, warmup)
-        call_stats(launcher)  # resets the bridge's counters
+        launcher.spin_for(warmup)
+        launcher.monitor.bridge_stats()  # resets the bridge's counters
         pids = {c.name: c.proc.pid for c in launcher.procs.children}
         pids["launcher"] = os.getpid()
         cpu0 = {name: cpu_seconds(pid) for name, pid in pids.items()}
         w0 = time.monotonic()
-        spin_for(launcher, window)
-        stats = call_stats(launcher)
+        launcher.spin_for(window)
+        stats = launcher.monitor.bridge_stats()
         wall = time.monotonic() - w0
         cpu = {name: 100.0 * (cpu_seconds(pid) - cpu0[name]) / wall for name, pid in pids.items()}
         memory = sum(pss_mb(pid) for name, pid in pids.items())

@@ -21,31 +21,24 @@ import sys
 import time
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseArray, Twist
 from nav_msgs.msg import Odometry
-from rcl_interfaces.msg import (
-    FloatingPointRange,
-    IntegerRange,
-    ParameterDescriptor,
-)
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import SetBool, Trigger
 
 from aes_ros.params import ParameterError
+from aes_ros.ros import interface as names
+from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import PoseArrayEncoder
+from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATEST_COMMAND, SENSOR, STREAM_WRITER
-from aes_ros.ros.spin import spin
-from aes_ros.scenario import load
-from sim_bridge.world import MODES, World
+from aes_ros.ros.spin import run_node_process
+from sim_bridge.world import World
 
 #: Wall-clock time [s] after which a lockstep bridge still waiting for commands
 #: publishes the same state again (a pose message may have been lost).
@@ -53,14 +46,6 @@ REPUBLISH_AFTER = 1.0
 
 #: At most this many cmd_vel latencies are kept between two /sim/stats calls.
 MAX_LATENCY_SAMPLES = 2_000_000
-
-
-def _float_param(description: str, low: float, high: float, read_only: bool = False):
-    return ParameterDescriptor(
-        description=description,
-        floating_point_range=[FloatingPointRange(from_value=low, to_value=high)],
-        read_only=read_only,
-    )
 
 
 class SimBridgeNode(Node):
@@ -105,12 +90,11 @@ class SimBridgeNode(Node):
     """
 
     def __init__(self, **kwargs) -> None:
-        super().__init__("sim_bridge", **kwargs)
+        super().__init__(names.SIM_BRIDGE_NODE, **kwargs)
+        self._warn = ThrottledWarnings(self.get_logger())
+        scenario = rp.declare_scenario(self)
         self._declare_parameters()
         get = self.get_parameter
-        scenario = load(get("scenario").value)
-        if get("num_robots").value > 0:
-            scenario = scenario.with_robots(get("num_robots").value)
         self.scenario = scenario
         positions, headings = scenario.initial_state(get("seed").value)
         self.n = len(headings)
@@ -120,16 +104,19 @@ class SimBridgeNode(Node):
         self.limits = (scenario.max_linear_speed, scenario.max_angular_speed)
         self.lockstep = get("lockstep").value
         self.real_time_factor = get("real_time_factor").value
-        self.world = World(
-            positions,
-            headings,
-            mode=get("mode").value,
-            dt=self.dt,
-            physics_rate=get("physics_rate").value,
-            cmd_timeout=get("cmd_timeout").value,
-            limits=self.limits if get("clip").value else None,
-            gui=get("gui").value,
-        )
+        try:
+            self.world = World(
+                positions,
+                headings,
+                mode=get("mode").value,
+                dt=self.dt,
+                physics_rate=get("physics_rate").value,
+                cmd_timeout=get("cmd_timeout").value,
+                limits=self.limits if get("clip").value else None,
+                gui=get("gui").value,
+            )
+        except (ValueError, RuntimeError) as exc:  # a world that cannot be built
+            raise ParameterError(str(exc)) from None
         self.paused = False
         self.fresh = np.zeros(self.n, dtype=bool)  # lockstep: new cmd_vel since last publish
         self.waiting = False  # lockstep at full speed: step timer parked until all arrived
@@ -138,31 +125,34 @@ class SimBridgeNode(Node):
         self.publish_wall = self.last_publish  # when the newest state went out [s, monotonic]
         self._reset_stats()
 
-        self.clock_pub = self.create_publisher(ClockMsg, "/clock", STREAM_WRITER)
-        self.poses_pub = self.create_publisher(PoseArray, "/swarm/poses", STREAM_WRITER)
+        self.clock_pub = self.create_publisher(ClockMsg, names.CLOCK, STREAM_WRITER)
+        self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
         # Every QoS event handler is one more entity in each wait of the executor;
         # robot 0's report incompatible QoS (all robots are alike), the others none.
         quiet_pub = PublisherEventCallbacks(use_default_callbacks=False)
         quiet_sub = SubscriptionEventCallbacks(use_default_callbacks=False)
         self.odom_pubs = [
             self.create_publisher(
-                Odometry, f"/mona_{i}/odom", SENSOR, event_callbacks=quiet_pub if i else None
+                Odometry,
+                names.robot_topic(i, names.ODOM),
+                SENSOR,
+                event_callbacks=quiet_pub if i else None,
             )
             for i in range(self.n)
         ]
         self.cmd_subs = [
             self.create_subscription(
                 Twist,
-                f"/mona_{i}/cmd_vel",
+                names.robot_topic(i, names.CMD_VEL),
                 self._cmd_callback(i),
                 LATEST_COMMAND,
                 event_callbacks=quiet_sub if i else None,
             )
             for i in range(self.n)
         ]
-        self.create_service(Trigger, "/sim/reset", self.on_reset)
-        self.create_service(SetBool, "/sim/pause", self.on_pause)
-        self.create_service(Trigger, "/sim/stats", self.on_stats)
+        self.create_service(Trigger, names.SIM_RESET, self.on_reset)
+        self.create_service(SetBool, names.SIM_PAUSE, self.on_pause)
+        self.create_service(Trigger, names.SIM_STATS, self.on_stats)
         self._build_messages()
         self._update_odom_listeners()
         self.add_post_set_parameters_callback(self.on_parameters_set)
@@ -183,81 +173,79 @@ class SimBridgeNode(Node):
 
     # --- set-up ----------------------------------------------------------------
     def _declare_parameters(self) -> None:
-        ro = {"read_only": True}
-        self.declare_parameter(
-            "scenario",
-            "combined",
-            ParameterDescriptor(
-                description="setup name (linear|rotation|combined) or scenario YAML path", **ro
-            ),
-        )
-        self.declare_parameter(
-            "num_robots",
-            0,
-            ParameterDescriptor(
-                description="robots on a grid; 0 = the scenario's formation",
-                integer_range=[IntegerRange(from_value=0, to_value=10000, step=1)],
-                **ro,
-            ),
-        )
+        """The bridge's parameters (``scenario`` and ``num_robots`` are declared by
+        :func:`aes_ros.ros.parameters.declare_scenario`, as in every node)."""
         self.declare_parameter(
             "seed",
             0,
-            ParameterDescriptor(
-                description="seed of the initial state (Scenario.initial_state)",
-                integer_range=[IntegerRange(from_value=0, to_value=2**31 - 1, step=1)],
-                **ro,
+            rp.int_descriptor(
+                "seed of the initial state (Scenario.initial_state; read at start)",
+                0,
+                2**31 - 1,
+                read_only=True,
             ),
         )
         self.declare_parameter(
             "mode",
             "kinematic",
-            ParameterDescriptor(
-                description="kinematic | dynamic",
-                additional_constraints="one of " + ", ".join(MODES),
-                **ro,
+            rp.text_descriptor(
+                "kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors, friction "
+                "and collisions (read at start)",
+                names.MODES,
+                read_only=True,
             ),
         )
         self.declare_parameter(
             "physics_rate",
             240.0,
-            _float_param("pybullet step rate in dynamic mode [Hz]", 1.0, 10000.0, True),
+            rp.float_descriptor(
+                "pybullet step rate in dynamic mode", "Hz", 1.0, 10000.0, read_only=True
+            ),
         )
         self.declare_parameter(
             "publish_rate",
             20.0,
-            _float_param(
-                "control rate: world steps, /clock, poses and odom [Hz]", 0.1, 1000.0, True
+            rp.float_descriptor(
+                "control rate: world steps, /clock, poses and odom",
+                "Hz",
+                0.1,
+                1000.0,
+                read_only=True,
             ),
         )
         self.declare_parameter(
             "real_time_factor",
             1.0,
-            _float_param("sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
+            rp.float_descriptor(
+                "sim seconds per wall second; 0 = as fast as possible", "", 0.0, 1000.0
+            ),
         )
         self.declare_parameter(
-            "lockstep",
-            False,
-            ParameterDescriptor(description="wait for every robot's cmd_vel before each step"),
+            "lockstep", False, rp.bool_descriptor("wait for every robot's cmd_vel before each step")
         )
         self.declare_parameter(
             "cmd_timeout",
             0.5,
-            _float_param("a robot whose last cmd_vel is older stops [s, sim time]", 0.0, 1e6),
+            rp.float_descriptor(
+                "a robot whose last cmd_vel is older stops (sim time)", "s", 0.0, 1e6
+            ),
         )
         self.declare_parameter(
             "clip",
             True,
-            ParameterDescriptor(
-                description="clip commands to the scenario's max_linear_speed and max_angular_speed"
+            rp.bool_descriptor(
+                "clip commands to the scenario's max_linear_speed and max_angular_speed"
             ),
         )
         self.declare_parameter(
-            "gui", False, ParameterDescriptor(description="open the pybullet GUI", **ro)
+            "gui",
+            False,
+            rp.bool_descriptor("open the pybullet GUI (read at start)", read_only=True),
         )
         mode = self.get_parameter("mode").value
-        if mode not in MODES:
-            raise ParameterError(f"mode: {mode!r} is not allowed; use one of {', '.join(MODES)}")
+        reason = rp.choice_error("mode", mode, names.MODES)
+        if reason is not None:
+            raise ParameterError(reason)
 
     def _build_messages(self) -> None:
         """Messages reused every step: only their numbers change.
@@ -268,13 +256,13 @@ class SimBridgeNode(Node):
         """
         self.stamp = Time()
         self.clock_msg = ClockMsg(clock=self.stamp)
-        self.poses_encoder = PoseArrayEncoder(self.n, "odom")
+        self.poses_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
         self.odom_msgs = []
         for i in range(self.n):
             odom = Odometry()
-            odom.header.frame_id = "odom"
+            odom.header.frame_id = names.WORLD_FRAME
             odom.header.stamp = self.stamp
-            odom.child_frame_id = f"mona_{i}/base_link"
+            odom.child_frame_id = names.base_link(i)
             self.odom_msgs.append(odom)
 
     def _cmd_callback(self, robot_id: int):
@@ -292,9 +280,7 @@ class SimBridgeNode(Node):
         """Store robot ``robot_id``'s command; in lockstep, step once all are in."""
         u, turn = msg.linear.x, msg.angular.z
         if not (math.isfinite(u) and math.isfinite(turn)):
-            self.get_logger().warning(
-                f"dropped a non-finite cmd_vel of robot {robot_id}", throttle_duration_sec=5.0
-            )
+            self._warn(f"dropped a non-finite cmd_vel: robot {robot_id}")
             return
         self.world.set_command(robot_id, u, turn)
         self.cmd_counts[robot_id] += 1
@@ -462,28 +448,9 @@ class SimBridgeNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point of ``aes-sim-bridge``.
-
-    Spins with :func:`aes_ros.ros.spin.spin` (EventsExecutor; SIGINT and SIGTERM
-    end the loop, then the node is destroyed in order). Exit code 0 on a signal,
-    2 on a bad parameter or a world that cannot be built.
-    """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    code = 0
-    try:
-        node = SimBridgeNode()
-        spin([node])
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ParameterError, ParameterException, ValueError, RuntimeError) as exc:
-        print(f"aes-sim-bridge: {exc}", file=sys.stderr)
-        code = 2
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return code
+    """``aes-sim-bridge``: exit code 0 on SIGINT/SIGTERM, 1 when it cannot start
+    (a bad parameter, a world that cannot be built)."""
+    return run_node_process(names.SIM_BRIDGE_NODE, args, SimBridgeNode)
 
 
 if __name__ == "__main__":

@@ -32,10 +32,10 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
+from aes_ros.frames import yaw_from_quaternion
 from aes_ros.model import clip_commands, unicycle_step, wrap_angle
+from aes_ros.ros.interface import MODES
 from sim_bridge.mona import MonaGeometry, urdf
-
-MODES = ("kinematic", "dynamic")
 
 # pybullet collision groups (a pair collides if each one's group is in the other's mask)
 _BODY, _FLOOR, _WHEEL, _ALL = 1, 2, 4, 0xFFFF
@@ -267,7 +267,7 @@ class World:
         if self.mode == "kinematic":
             return self._positions.copy(), self._headings.copy()
         centres, quats = self._base_states()
-        yaw = _yaw(quats)
+        yaw = yaw_from_quaternion(quats)
         a = self.geometry.axle_offset
         pos = np.stack([centres[:, 0] - a * np.cos(yaw), centres[:, 1] - a * np.sin(yaw)], -1)
         return pos, wrap_angle(yaw)
@@ -284,7 +284,7 @@ class World:
             [sum(pb.getBaseVelocity(b, physicsClientId=c), ()) for b in self.bodies]
         ).reshape(self.n, 6)
         _, quats = self._base_states()
-        yaw = _yaw(quats)
+        yaw = yaw_from_quaternion(quats)
         cs, sn = np.cos(yaw), np.sin(yaw)
         turn = vel[:, 5]
         forward = vel[:, 0] * cs + vel[:, 1] * sn
@@ -335,9 +335,3 @@ class World:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _yaw(quats: np.ndarray) -> np.ndarray:
-    """Yaw [rad] of quaternions (..., 4) in xyzw order."""
-    x, y, z, w = np.moveaxis(quats, -1, 0)
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))

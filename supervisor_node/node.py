@@ -21,13 +21,10 @@ Steer at runtime (full ROS 2 install)::
 
 from __future__ import annotations
 
-import math
 import sys
-import time
 from typing import Any
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
 from rclpy.node import Node
@@ -36,23 +33,17 @@ from std_msgs.msg import Bool, Float64
 from std_srvs.srv import SetBool
 
 from aes_ros.metrics import alignment_order, heading_order, total_force
-from aes_ros.model import Gains, SwarmCommand, total_forces
+from aes_ros.model import GAIN_FIELDS, Gains, SwarmCommand, total_forces
 from aes_ros.params import PARAMS, ParameterError
+from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_pose_array
-from aes_ros.ros.conversions import (
-    BadMessageError,
-    drive_to_twist,
-    twist_to_drive,
-)
+from aes_ros.ros.conversions import BadMessageError, drive_to_twist, twist_to_drive
+from aes_ros.ros.node_tools import PublishCounter, ThrottledWarnings
 from aes_ros.ros.qos import COMMAND, SENSOR
 from aes_ros.ros.qos import LATCHED_WRITER as LATCHED
 from aes_ros.ros.spin import run_node_process
 
-NODE_NAME = "supervisor"
-#: Logged at the first valid /swarm/poses.
-RECEIVING_POSES = "receiving /swarm/poses"
-CENTER_MODES = ("centroid", "fixed")
 #: Supervisor parameters checked against a PARAMS entry of another name.
 _SPEC_OF = {
     "desired_direction": PARAMS["direction"],
@@ -67,8 +58,6 @@ _COMMAND_NAMES = (
     "publish_rate",
     "enabled",
 )
-#: Seconds between repeated warnings about dropped messages.
-WARN_PERIOD = 5.0
 
 
 class SupervisorNode(Node):
@@ -100,11 +89,11 @@ class SupervisorNode(Node):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        self._warned: dict[str, float] = {}
+        super().__init__(names.SUPERVISOR_NODE, **kwargs)
+        self._warn = ThrottledWarnings(self.get_logger())
         scen = rp.declare_scenario(self)
         _, self._neighbors, self._rest = scen.sheet()
-        rp.declare_model_parameters(self, rp.GAIN_NAMES, scen.values)
+        rp.declare_model_parameters(self, GAIN_FIELDS, scen.values)
         command = scen.command
         self.declare_parameter(
             "desired_direction",
@@ -119,7 +108,7 @@ class SupervisorNode(Node):
             "centroid" if command.center is None else "fixed",
             rp.text_descriptor(
                 "rotation centre x_c: the live centroid of /swarm/poses or rotation_center",
-                CENTER_MODES,
+                names.CENTER_MODES,
             ),
         )
         self.declare_parameter(
@@ -142,17 +131,17 @@ class SupervisorNode(Node):
         rp.guard_parameters(self, self._check, self._apply_parameters)
 
         #: Messages published so far, per topic.
-        self.published: dict[str, int] = {}
-        self._velocity_pub = self.create_publisher(TwistStamped, "/swarm/desired_velocity", LATCHED)
-        self._center_pub = self.create_publisher(PointStamped, "/swarm/rotation_center", LATCHED)
-        self._enabled_pub = self.create_publisher(Bool, "/swarm/enabled", LATCHED)
-        self._alignment_pub = self.create_publisher(Float64, "/swarm/alignment", LATCHED)
-        self._heading_pub = self.create_publisher(Float64, "/swarm/heading_order", LATCHED)
-        self._force_pub = self.create_publisher(Float64, "/swarm/total_force", LATCHED)
-        self.create_subscription(Twist, "/swarm/cmd", self.on_cmd, COMMAND)
+        self.counter = PublishCounter()
+        self._velocity_pub = self.create_publisher(TwistStamped, names.DESIRED_VELOCITY, LATCHED)
+        self._center_pub = self.create_publisher(PointStamped, names.ROTATION_CENTER, LATCHED)
+        self._enabled_pub = self.create_publisher(Bool, names.ENABLED, LATCHED)
+        self._alignment_pub = self.create_publisher(Float64, names.ALIGNMENT, LATCHED)
+        self._heading_pub = self.create_publisher(Float64, names.HEADING_ORDER, LATCHED)
+        self._force_pub = self.create_publisher(Float64, names.TOTAL_FORCE, LATCHED)
+        self.create_subscription(Twist, names.CMD, self.on_cmd, COMMAND)
         # Raw: the poses are read from the wire format with numpy (aes_ros.ros.cdr).
-        self.create_subscription(PoseArray, "/swarm/poses", self.on_poses, SENSOR, raw=True)
-        self.create_service(SetBool, "/swarm/enable", self.on_enable)
+        self.create_subscription(PoseArray, names.POSES, self.on_poses, SENSOR, raw=True)
+        self.create_service(SetBool, names.ENABLE, self.on_enable)
 
         self._poses: tuple[Any, np.ndarray, np.ndarray] | None = None
         self._poses_new = False
@@ -168,7 +157,7 @@ class SupervisorNode(Node):
         def value(name: str) -> Any:
             return updates[name] if name in updates else self.get_parameter(name).value
 
-        reason = rp.check([Parameter(n, value=value(n)) for n in rp.GAIN_NAMES])
+        reason = rp.check([Parameter(n, value=value(n)) for n in GAIN_FIELDS])
         if reason is not None:
             return reason
         for name, spec in _SPEC_OF.items():
@@ -177,13 +166,15 @@ class SupervisorNode(Node):
                 spec.validate(list(raw) if isinstance(raw, list | tuple) else raw)
             except ParameterError as exc:
                 return f"{name}: {str(exc).partition(': ')[2]}"
-        return rp.choice_error("rotation_center_mode", value("rotation_center_mode"), CENTER_MODES)
+        return rp.choice_error(
+            "rotation_center_mode", value("rotation_center_mode"), names.CENTER_MODES
+        )
 
     def _apply_parameters(self) -> None:
         """Read the parameters; publish whatever part of the command changed."""
         p = {param.name: param.value for param in self.get_parameters(_COMMAND_NAMES)}
         self._gains = Gains(
-            **{param.name: param.value for param in self.get_parameters(rp.GAIN_NAMES)}
+            **{param.name: param.value for param in self.get_parameters(GAIN_FIELDS)}
         )
         old, self._state = self._state, p
         self._direction = (float(p["desired_direction"][0]), float(p["desired_direction"][1]))
@@ -195,7 +186,7 @@ class SupervisorNode(Node):
         if _changed(old, p, "rotation_center_mode", "rotation_center"):
             self._publish_center()
         if _changed(old, p, "enabled"):
-            self._publish(self._enabled_pub, Bool(data=bool(p["enabled"])))
+            self.counter.publish(self._enabled_pub, Bool(data=bool(p["enabled"])))
         if _changed(old, p, "publish_rate"):
             if self._timer is not None:
                 self.destroy_timer(self._timer)
@@ -204,14 +195,14 @@ class SupervisorNode(Node):
     def _publish_velocity(self) -> None:
         msg = TwistStamped()
         msg.header.stamp = self.get_clock().now().to_msg()
-        msg.header.frame_id = "odom"
+        msg.header.frame_id = names.WORLD_FRAME
         msg.twist = drive_to_twist(self._direction, self._omega)
-        self._publish(self._velocity_pub, msg)
+        self.counter.publish(self._velocity_pub, msg)
 
     def _publish_center(self) -> None:
         """Publish x_c: the fixed point now, or the centroid of the latest poses."""
         msg = PointStamped()
-        msg.header.frame_id = "odom"
+        msg.header.frame_id = names.WORLD_FRAME
         if self._centroid_mode:
             if self._poses is None:
                 return
@@ -221,7 +212,7 @@ class SupervisorNode(Node):
         else:
             msg.header.stamp = self.get_clock().now().to_msg()
             msg.point.x, msg.point.y = self._fixed_center
-        self._publish(self._center_pub, msg)
+        self.counter.publish(self._center_pub, msg)
 
     # --- inputs -----------------------------------------------------------------------
 
@@ -264,7 +255,7 @@ class SupervisorNode(Node):
             self._warn(f"dropped /swarm/poses: {exc}")
             return
         if self._poses is None:  # the launcher waits for this line (lockstep, recording)
-            self.get_logger().info(RECEIVING_POSES)
+            self.get_logger().info(names.SUPERVISOR_RECEIVING_POSES)
         self._poses = (Time(sec=sec, nanosec=nanosec), xy, yaw)
         self._poses_new = True
         if self._centroid_mode:
@@ -280,29 +271,13 @@ class SupervisorNode(Node):
             self._direction, self._omega, None if self._centroid_mode else self._fixed_center
         )
         forces = total_forces(xy, self._neighbors, self._rest, self._gains, command)
-        self._publish(self._alignment_pub, Float64(data=float(alignment_order(forces, yaw))))
-        self._publish(self._heading_pub, Float64(data=float(heading_order(yaw))))
-        self._publish(self._force_pub, Float64(data=float(total_force(forces))))
-
-    def _publish(self, publisher: Any, msg: Any) -> None:
-        publisher.publish(msg)
-        self.published[publisher.topic_name] = self.published.get(publisher.topic_name, 0) + 1
+        self.counter.publish(self._alignment_pub, Float64(data=float(alignment_order(forces, yaw))))
+        self.counter.publish(self._heading_pub, Float64(data=float(heading_order(yaw))))
+        self.counter.publish(self._force_pub, Float64(data=float(total_force(forces))))
 
     def destroy_node(self) -> None:
-        # Counted at the publisher, so that a recording can be checked for losses.
-        counts = ", ".join(f"{topic} {n}" for topic, n in sorted(self.published.items()))
-        # Not the node's logger: the context may be gone, and with it /rosout.
-        rclpy.logging.get_logger("published").info(f"{self.get_fully_qualified_name()}: {counts}")
+        self.counter.log(self.get_fully_qualified_name())
         super().destroy_node()
-
-    def _warn(self, text: str) -> None:
-        """A warning at most every WARN_PERIOD s per kind (the text before its first
-        colon): rclpy's own throttle would let one kind silence all the others."""
-        kind = text.partition(":")[0]
-        now = time.monotonic()
-        if now - self._warned.get(kind, -math.inf) >= WARN_PERIOD:
-            self._warned[kind] = now
-            self.get_logger().warning(text)
 
 
 def _changed(old: dict[str, Any], new: dict[str, Any], *names: str) -> bool:
@@ -311,7 +286,7 @@ def _changed(old: dict[str, Any], new: dict[str, Any], *names: str) -> bool:
 
 def main(args: list[str] | None = None) -> int:
     """``aes-supervisor``."""
-    return run_node_process(NODE_NAME, args, SupervisorNode)
+    return run_node_process(names.SUPERVISOR_NODE, args, SupervisorNode)
 
 
 if __name__ == "__main__":

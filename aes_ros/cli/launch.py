@@ -9,7 +9,7 @@ Examples::
     aes-swarm steer --omega 0.5                # turn counter-clockwise, keep the direction
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
-as separate processes (see :mod:`aes_ros.ros.launcher`), waits until every
+as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
 robot moves, runs ``--duration`` seconds of sim time (0: until Ctrl-C), stops
 every process and writes the same outputs as ``aes-swarm simulate``.
 """
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 from pathlib import Path
 
 from aes_ros.cli.simulate import add_scenario_options, load_scenario, number_type
@@ -26,7 +25,7 @@ from aes_ros.params import ParameterError
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    from aes_ros.ros.launcher import LAYOUTS, MODES, NEIGHBOR_SOURCES
+    from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 
     p = sub.add_parser(
         "launch",
@@ -100,7 +99,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run_launch(args: argparse.Namespace) -> int:
     from aes_ros import scenario as scenario_mod
-    from aes_ros.ros.launcher import LaunchConfig, LaunchError, launch
+    from aes_ros.ros.launch import LaunchConfig, LaunchError, launch
 
     sc = load_scenario(args)
     if args.robots is not None:
@@ -141,73 +140,8 @@ def run_launch(args: argparse.Namespace) -> int:
 def run_steer(args: argparse.Namespace) -> int:
     if args.direction is None and args.omega is None:
         raise ParameterError("steer: give --direction X Y and/or --omega W")
+    from aes_ros.ros.steering import steer
+
     ok, message = steer(args.direction, args.omega, timeout=args.timeout)
     print(message, file=sys.stdout if ok else sys.stderr)
     return 0 if ok else 1
-
-
-def steer(
-    direction: tuple[float, float] | list[float] | None,
-    omega: float | None,
-    timeout: float = 15.0,
-) -> tuple[bool, str]:
-    """Publish one /swarm/cmd and wait for the supervisor's /swarm/desired_velocity echo.
-
-    A None value keeps the supervisor's current one (read from the latched
-    /swarm/desired_velocity). Returns (success, message).
-    """
-    import rclpy
-    from geometry_msgs.msg import Twist, TwistStamped
-    from rclpy.executors import SingleThreadedExecutor
-
-    from aes_ros.ros.qos import COMMAND, LATCHED
-
-    rclpy.init(args=[])
-    node = rclpy.create_node("aes_steer")
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    current: list[TwistStamped] = []
-    node.create_subscription(TwistStamped, "/swarm/desired_velocity", current.append, LATCHED)
-    pub = node.create_publisher(Twist, "/swarm/cmd", COMMAND)
-    deadline = time.monotonic() + timeout
-    try:
-        # Wait for the supervisor (its /swarm/cmd subscription and its latched state).
-        start = time.monotonic()
-        while pub.get_subscription_count() == 0 or (
-            not current and ((direction is None or omega is None) or time.monotonic() < start + 3)
-        ):
-            if time.monotonic() > deadline:
-                return False, (
-                    "steer: no supervisor found (nobody subscribes /swarm/cmd or publishes "
-                    f"/swarm/desired_velocity) within {timeout:g} s; is the swarm running "
-                    "in this ROS_DOMAIN_ID?"
-                )
-            executor.spin_once(timeout_sec=0.05)
-        last = current[-1].twist if current else None
-        cmd = Twist()
-        cmd.linear.x = float(direction[0]) if direction is not None else last.linear.x
-        cmd.linear.y = float(direction[1]) if direction is not None else last.linear.y
-        cmd.angular.z = float(omega) if omega is not None else last.angular.z
-        want = (cmd.linear.x, cmd.linear.y, cmd.angular.z)
-        pub.publish(cmd)
-        sent = time.monotonic()
-        while time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-            if current:
-                t = current[-1].twist
-                got = (t.linear.x, t.linear.y, t.angular.z)
-                if all(
-                    abs(a - b) <= 1e-9 * max(1.0, abs(b)) for a, b in zip(got, want, strict=True)
-                ):
-                    return True, (
-                        f"steer: supervisor now drives direction ({want[0]:g}, {want[1]:g}), "
-                        f"omega {want[2]:g} rad/s"
-                    )
-            if time.monotonic() - sent > 0.5:  # lost or not yet matched: send again
-                pub.publish(cmd)
-                sent = time.monotonic()
-        return False, f"steer: the supervisor did not confirm the command within {timeout:g} s"
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()

@@ -16,6 +16,8 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Twist, Vector3Stamped
 from nav_msgs.msg import Odometry
 
+from aes_ros.frames import yaw_from_quaternion
+
 #: Largest accepted |x|, |y| of a position [m]: far beyond any arena, and small
 #: enough that squared distances and spring forces stay finite in float64.
 MAX_COORDINATE = 1e6
@@ -43,7 +45,7 @@ def yaw_to_quaternion(yaw: float) -> Quaternion:
 
 def quaternion_to_yaw(q: Quaternion) -> float:
     """Yaw [rad] of a ROS quaternion (rotation about z; roll and pitch ignored)."""
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+    return float(yaw_from_quaternion((q.x, q.y, q.z, q.w)))
 
 
 def pose_to_array(pose: Pose) -> tuple[float, float, float]:
@@ -84,9 +86,7 @@ def planar_poses(xy: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     """
     if not np.all(np.abs(q) <= MAX_QUATERNION):  # also false for NaN
         raise BadMessageError("PoseArray has an orientation that is not a rotation")
-    yaw = np.arctan2(
-        2.0 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1.0 - 2.0 * (q[:, 1] ** 2 + q[:, 2] ** 2)
-    )
+    yaw = yaw_from_quaternion(q)
     _check_coordinates(xy, "PoseArray")
     return xy, yaw
 

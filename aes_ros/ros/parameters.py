@@ -27,8 +27,6 @@ from rclpy.parameter import Parameter
 from aes_ros import scenario as scenario_mod
 from aes_ros.params import PARAMS, ParameterError, ParamSpec
 
-#: Model parameters every AES node may override: gains and noise (SPEC §1.4).
-GAIN_NAMES = ("alpha", "beta", "k", "v0", "w_l", "w_r", "d_r", "d_theta")
 #: Robot limits (SPEC §5).
 LIMIT_NAMES = ("max_linear_speed", "max_angular_speed")
 
@@ -105,8 +103,11 @@ def array_descriptor(description: str, unit: str, constraint: str) -> ParameterD
     )
 
 
-def bool_descriptor(description: str) -> ParameterDescriptor:
-    return ParameterDescriptor(description=_text(description, "", "true or false"))
+def bool_descriptor(description: str, *, read_only: bool = False) -> ParameterDescriptor:
+    """Descriptor of a bool."""
+    return ParameterDescriptor(
+        description=_text(description, "", "true or false"), read_only=read_only
+    )
 
 
 def to_ros_value(spec: ParamSpec, value: Any) -> Any:

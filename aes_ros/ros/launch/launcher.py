@@ -1,0 +1,399 @@
+"""Start the whole ROS system as separate processes, run it, stop it cleanly.
+
+What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
+
+1. writes the effective scenario to ``<work>/scenario.yaml`` and the per-robot
+   parameters to ``<work>/robots.yaml`` (:mod:`aes_ros.ros.launch.plan`), so every
+   process reads the same values;
+2. starts, each in its own process group with the caller's ROS environment
+   (:mod:`aes_ros.ros.launch.processes`): the recorder (with ``record``),
+   ``aes-sim-bridge``, ``aes-supervisor`` and the robots in the chosen layout; all
+   at once, except in lockstep or when recording, where the robots start only
+   after the bridge's first poses have reached the launcher, the supervisor and
+   the recorder, and with a recording the bridge is paused until the recorder
+   has found every robot's and the supervisor's publishers;
+3. watches ``/swarm/poses`` (:mod:`aes_ros.ros.launch.monitor`) until every robot
+   has moved, then runs for ``duration`` seconds of sim time (0 = until
+   SIGINT/SIGTERM);
+4. stops every process (SIGINT to its group, SIGKILL after ``stop_timeout``), the
+   recorder last so that the bag is complete and closed, and cleans Fast DDS
+   shared memory left by killed processes;
+5. writes ``trajectory.npz``, ``metrics.csv``, ``snapshots.png`` and ``metrics.png``
+   with :func:`aes_ros.report.write_run_outputs` from the poses sampled over the
+   run (times are sim times [s]; the first sample is the last one before every
+   robot had moved).
+
+SIGINT or SIGTERM to the launcher ends the run early the same way (processes
+stopped, bag closed, outputs written from what was sampled).
+
+Example::
+
+    from aes_ros import scenario
+    from aes_ros.ros.launch import LaunchConfig, launch
+    result = launch(LaunchConfig(scenario.load("linear").with_robots(16), duration=20.0,
+                                 lockstep=True, real_time_factor=0.0, out_dir=Path("out")))
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aes_ros import metrics
+from aes_ros.report import write_run_outputs
+from aes_ros.ros import interface as names
+from aes_ros.ros.launch.monitor import TIME_EPS, Monitor
+from aes_ros.ros.launch.plan import (
+    LaunchConfig,
+    LaunchError,
+    node_commands,
+    recorder_command,
+    write_robot_params,
+    write_scenario,
+)
+from aes_ros.ros.launch.processes import Child, ProcessSet
+
+#: A robot has moved once its position changed by more than this [m] or its heading [rad].
+MOVE_EPS = 1e-6
+
+
+@dataclass
+class LaunchResult:
+    """What a run produced.
+
+    times : (T,) sim time [s]; positions : (T, N, 2) [m]; headings : (T, N) [rad].
+    t_go : sim time [s] of the first sample (the last one before every robot moved).
+    stopped_by : None when the run lasted ``duration``, else the signal's name.
+    summary : the one-line summary of write_run_outputs ("" when nothing was written).
+    killed : processes that had to be SIGKILLed at the end.
+    exit_codes : every process's exit code (0 = clean shutdown).
+    """
+
+    times: np.ndarray
+    positions: np.ndarray
+    headings: np.ndarray
+    t_go: float
+    wall_time: float
+    stopped_by: str | None = None
+    summary: str = ""
+    killed: list[str] = field(default_factory=list)
+    exit_codes: dict[str, int] = field(default_factory=dict)
+
+
+class Launcher:
+    """Runs one launch: :meth:`start`, :meth:`wait_until_moving`, :meth:`run`, :meth:`stop`.
+
+    :func:`launch` does all four; the steps are separate so that a test, a script
+    or a benchmark can act on the running system in between (e.g. call services
+    with :attr:`monitor` while :meth:`run` is not active, keep it going with
+    :meth:`spin_for`, or run with ``duration=0`` and :meth:`request_stop`).
+    """
+
+    def __init__(self, config: LaunchConfig, say: Callable[[str], None] = print) -> None:
+        self.config = config
+        self.say = say
+        self._own_work_dir = config.work_dir is None and config.out_dir is None
+        if config.work_dir is not None:
+            self.work_dir = Path(config.work_dir)
+        elif config.out_dir is not None:
+            self.work_dir = Path(config.out_dir)
+        else:
+            self.work_dir = Path(tempfile.mkdtemp(prefix="aes-launch-"))
+        self.work_dir.mkdir(parents=True, exist_ok=True)
+        self.procs = ProcessSet(self.work_dir / "logs")
+        self.recorder: Child | None = None
+        self.monitor: Monitor | None = None
+        self.stop_reason: str | None = None
+        self.t_go: float | None = None
+        self.go_index = 0
+        self._wall_start = time.monotonic()
+        self._stopped = False
+        self.killed: list[str] = []
+        self.exit_codes: dict[str, int] = {}
+
+    @property
+    def wall_time(self) -> float:
+        """Wall seconds since the launcher was made."""
+        return time.monotonic() - self._wall_start
+
+    # -- signals -------------------------------------------------------------------------
+
+    def request_stop(self, reason: str = "stop requested") -> None:
+        """End :meth:`wait_until_moving` / :meth:`run` at the next poll."""
+        self.stop_reason = reason
+
+    @contextlib.contextmanager
+    def signals_stop(self) -> Iterator[None]:
+        """While active, SIGINT/SIGTERM end the run instead of killing the launcher."""
+        if threading.current_thread() is not threading.main_thread():
+            yield
+            return
+
+        def handler(signum: int, _frame: object) -> None:
+            self.request_stop(signal.Signals(signum).name)
+
+        old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+        try:
+            yield
+        finally:
+            for s, h in old.items():
+                signal.signal(s, h)
+
+    # -- steps ---------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Write the parameter files and start every process (see the module docstring)."""
+        cfg = self.config
+        n = cfg.num_robots
+        scenario_file = write_scenario(cfg.scenario, self.work_dir / "scenario.yaml")
+        robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
+        self.monitor = Monitor(n)
+        if cfg.record is not None:
+            record = Path(cfg.record).resolve()
+            self.recorder = self.procs.start(*recorder_command(record, n, sys.executable))
+            self._wait_signal(self.recorder, names.RECORDER_STARTED, 30.0)
+        bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
+        bridge = self.procs.start(*bridge_spec)
+        if cfg.lockstep or self.recorder is not None:
+            # The bridge and the supervisor first: the robots start only once the
+            # launcher, the supervisor (and the recorder) receive /swarm/poses, so
+            # that no step of a deterministic run and no message of a recording is
+            # missed (at full speed a run can be over before a late reader matches).
+            supervisor = self.procs.start(*supervisor_spec)
+            self._wait_first_poses(bridge)
+            self._wait_signal(supervisor, names.SUPERVISOR_RECEIVING_POSES, cfg.start_timeout)
+            if self.recorder is not None:
+                receiving = names.recorder_receiving(names.POSES)
+                self._wait_signal(self.recorder, receiving, cfg.start_timeout)
+                # Paused until the recorder has found every robot's and the
+                # supervisor's publishers: on a loaded machine discovery can take
+                # seconds, and what a writer sends before the reader knows it is
+                # lost for the bag (only its last few are kept for late readers).
+                self.monitor.pause_bridge(True, cfg.start_timeout)
+            for spec in robot_specs:
+                self.procs.start(*spec)
+            if self.recorder is not None:
+                self._wait_signal(self.recorder, names.RECORDER_MATCHED_ALL, cfg.start_timeout)
+                self.monitor.pause_bridge(False, cfg.start_timeout)
+        else:
+            # Everything at once: each process spends ~1 s starting Python and
+            # building its nodes, and discovery overlaps; robots move at their first
+            # poses, and the run starts at the last sample before all of them moved.
+            for spec in (supervisor_spec, *robot_specs):
+                self.procs.start(*spec)
+            self._wait_first_poses(bridge)
+        hosts = len(robot_specs)
+        self.say(
+            f"launch: {n} robots, layout {cfg.layout} ({hosts} robot process"
+            f"{'es' if hosts != 1 else ''}), neighbours from {cfg.neighbor_source}, "
+            f"{cfg.mode} mode{', lockstep' if cfg.lockstep else ''}, "
+            f"real-time factor {cfg.real_time_factor:g}; logs in {self.procs.log_dir}"
+        )
+
+    def _wait_first_poses(self, bridge: Child) -> None:
+        deadline = time.monotonic() + self.config.start_timeout
+        while not self.monitor.times and self.stop_reason is None:
+            self.monitor.spin_once(0.05)
+            if bridge.proc.poll() is not None:
+                raise LaunchError(
+                    f"sim_bridge exited with code {bridge.proc.returncode}:\n{bridge.tail()}"
+                )
+            if time.monotonic() > deadline:
+                raise LaunchError(
+                    f"no /swarm/poses from sim_bridge within {self.config.start_timeout:.0f} s"
+                )
+
+    def _wait_signal(self, child: Child, ready: str, timeout: float) -> None:
+        """Wait until ``child`` printed the ready signal ``ready`` (:mod:`interface`)."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if ready in child.tail(100_000) or self.stop_reason is not None:
+                return
+            if child.proc.poll() is not None:
+                raise LaunchError(
+                    f"{child.name} exited with {child.proc.returncode}:\n{child.tail()}"
+                )
+            time.sleep(0.05)
+        raise LaunchError(f"{child.name} did not start within {timeout:.0f} s")
+
+    def check_children(self) -> None:
+        """Raise LaunchError if a process has exited."""
+        dead = self.procs.dead()
+        if dead:
+            c = dead[0]
+            raise LaunchError(
+                f"{c.name} exited with code {c.proc.returncode} during the run; "
+                f"its log ({c.log}) ends:\n{c.tail()}"
+            )
+
+    def spin_for(self, seconds: float) -> None:
+        """Keep sampling (and checking the processes) for ``seconds`` of wall time."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.monitor.spin_once(0.05)
+            self.check_children()
+
+    def wait_until_moving(self) -> float:
+        """Block until every robot has moved from its first sampled pose.
+
+        Returns the sim time of the last sample before that (the run's start),
+        or raises LaunchError after ``start_timeout`` s of wall time.
+        """
+        mon = self.monitor
+        assert mon is not None, "start() first"
+        deadline = time.monotonic() + self.config.start_timeout
+        checked = 0
+        moved = np.zeros(mon.n, dtype=bool)
+        last_unmoved = 0
+        while self.stop_reason is None:
+            mon.spin_once(0.05)
+            self.check_children()
+            while checked < len(mon.times):
+                p0, h0 = mon.positions[0], mon.headings[0]
+                dp = np.linalg.norm(mon.positions[checked] - p0, axis=-1)
+                dh = np.abs(np.angle(np.exp(1j * (mon.headings[checked] - h0))))
+                moved |= (dp > MOVE_EPS) | (dh > MOVE_EPS)
+                if not moved.all():
+                    last_unmoved = checked
+                checked += 1
+                if moved.all():
+                    self.go_index = last_unmoved
+                    self.t_go = mon.times[last_unmoved]
+                    self.say(
+                        f"launch: all {mon.n} robots moving at sim time "
+                        f"{mon.times[checked - 1]:.2f} s (wall {self.wall_time:.1f} s)"
+                    )
+                    return self.t_go
+            if time.monotonic() > deadline:
+                stuck = np.flatnonzero(~moved).tolist()
+                raise LaunchError(
+                    f"not every robot moved within {self.config.start_timeout:.0f} s "
+                    f"({len(mon.times)} pose samples; still at rest: {stuck[:20]})"
+                )
+        self.t_go = mon.times[last_unmoved] if mon.times else 0.0
+        return self.t_go
+
+    def run(self, duration: float | None = None) -> None:
+        """Sample poses until ``duration`` s of sim time after the start (0: until stopped)."""
+        mon = self.monitor
+        assert mon is not None and self.t_go is not None, "wait_until_moving() first"
+        duration = self.config.run_time if duration is None else duration
+        t_end = self.t_go + duration if duration > 0 else math.inf
+        next_report = self.t_go + self.config.progress_every
+        last_count, last_new = len(mon.times), time.monotonic()
+        while self.stop_reason is None:
+            mon.spin_once(0.05)
+            self.check_children()
+            if len(mon.times) != last_count:
+                last_count, last_new = len(mon.times), time.monotonic()
+            elif time.monotonic() - last_new > self.config.stall_timeout:
+                raise LaunchError(
+                    f"no /swarm/poses for {self.config.stall_timeout:.0f} s "
+                    f"(sim time {mon.clock:.2f} s)"
+                )
+            now = mon.times[-1] if mon.times else 0.0
+            if now >= next_report - TIME_EPS and now < t_end - TIME_EPS:
+                self._progress(now)
+                next_report += self.config.progress_every
+            if now >= t_end - TIME_EPS:
+                return
+
+    def _progress(self, t: float) -> None:
+        mon = self.monitor
+        pos, head = mon.positions[-1], mon.headings[-1]
+        c = pos.mean(axis=0)
+        order = float(metrics.heading_order(head))
+        self.say(
+            f"  t = {t:6.1f} s  centroid ({c[0]:+.2f}, {c[1]:+.2f}) m  "
+            f"heading order {order:.3f}  [wall {self.wall_time:.1f} s]"
+        )
+
+    def stop(self) -> list[str]:
+        """Stop every process (idempotent); returns the names of SIGKILLed ones."""
+        if self._stopped:
+            return self.killed
+        self._stopped = True
+        last = [self.recorder] if self.recorder is not None else []
+        self.killed = self.procs.stop_all(self.config.stop_timeout, last=last)
+        if self.monitor is not None:
+            self.monitor.close()
+        if self.recorder is not None:
+            lines = self.recorder.tail(300).strip().splitlines()
+            self.say(f"launch: {lines[-1] if lines else 'recorder wrote nothing'}")
+        self.exit_codes = {c.name: c.proc.returncode for c in self.procs.children}
+        unclean = {k: v for k, v in self.exit_codes.items() if v != 0 and k not in self.killed}
+        if unclean:
+            listed = ", ".join(f"{k} ({v})" for k, v in unclean.items())
+            self.say(
+                f"launch: exit codes other than 0 (-N: ended by signal N before its node "
+                f"was up): {listed}; logs in {self.procs.log_dir}"
+            )
+        else:
+            self.say(f"launch: all {len(self.exit_codes)} processes stopped cleanly")
+        return self.killed
+
+    def samples(self, t_end: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(times (T,), positions (T, N, 2), headings (T, N)) from the run's start to t_end."""
+        mon = self.monitor
+        times = np.asarray(mon.times[self.go_index :])
+        pos = np.asarray(mon.positions[self.go_index :]).reshape(len(times), mon.n, 2)
+        head = np.asarray(mon.headings[self.go_index :]).reshape(len(times), mon.n)
+        if t_end is not None and len(times):
+            keep = times <= t_end + TIME_EPS
+            keep[: max(1, int(keep.sum()))] = True
+            times, pos, head = times[keep], pos[keep], head[keep]
+        return times, pos, head
+
+    def cleanup(self, ok: bool) -> None:
+        """Remove the temporary work directory of a successful run without out_dir."""
+        if ok and self._own_work_dir:
+            shutil.rmtree(self.work_dir, ignore_errors=True)
+        elif not ok:
+            self.say(f"launch: process logs kept in {self.procs.log_dir}")
+
+
+def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchResult:
+    """Start, wait until every robot moves, run ``duration`` s of sim time, stop, write outputs.
+
+    Raises LaunchError when the system does not start or a process dies; every
+    process is stopped in any case.
+    """
+    launcher = Launcher(config, say)
+    ok = False
+    with launcher.signals_stop():
+        try:
+            launcher.start()
+            launcher.wait_until_moving()
+            launcher.run()
+            ok = True
+        finally:
+            killed = launcher.stop()
+            if killed:
+                say(f"launch: had to SIGKILL {', '.join(killed)}")
+            launcher.cleanup(ok and not killed and not any(launcher.exit_codes.values()))
+    t_end = None if config.run_time == 0 else launcher.t_go + config.run_time
+    times, pos, head = launcher.samples(t_end)
+    result = LaunchResult(
+        times, pos, head, float(launcher.t_go), launcher.wall_time,
+        stopped_by=launcher.stop_reason, killed=killed, exit_codes=launcher.exit_codes,
+    )  # fmt: skip
+    if launcher.stop_reason is not None:
+        t_last = times[-1] if len(times) else 0.0
+        say(f"launch: stopped by {launcher.stop_reason} at sim time {t_last:.2f} s")
+    if config.out_dir is not None and len(times) >= 2:
+        result.summary = write_run_outputs(
+            Path(config.out_dir), times, pos[None], head[None], config.scenario,
+            label=config.label,
+        )  # fmt: skip
+    return result

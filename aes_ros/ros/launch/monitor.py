@@ -1,0 +1,120 @@
+"""The launcher's own rclpy node: samples ``/swarm/poses`` and ``/clock``, calls services.
+
+It runs in its own rclpy context, spun by the launcher between its other duties
+(:meth:`Monitor.spin_once`), and reads the poses raw with numpy
+(:mod:`aes_ros.ros.cdr`: building N ``Pose`` objects per step was half of its CPU).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import time
+from typing import Any
+
+import numpy as np
+import rclpy
+from geometry_msgs.msg import PoseArray
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import SetBool, Trigger
+
+from aes_ros.ros import interface as names
+from aes_ros.ros.cdr import decode_pose_array
+from aes_ros.ros.conversions import BadMessageError
+from aes_ros.ros.launch.plan import LaunchError
+
+#: Tolerance on sim-time comparisons [s].
+TIME_EPS = 1e-6
+
+
+class Monitor:
+    """Samples of the swarm's poses as the bridge publishes them.
+
+    ``times`` (sim time [s]), ``positions`` ((N, 2) each) and ``headings`` ((N,)
+    each) grow with every new ``/swarm/poses`` message; a message with an older
+    stamp (the bridge was restarted or reset its clock) starts them over.
+    ``clock`` is the latest ``/clock`` [s].
+    """
+
+    def __init__(self, n_robots: int) -> None:
+        self.n = n_robots
+        self.context = rclpy.Context()
+        # The launcher handles SIGINT/SIGTERM itself (it must stop the children first).
+        rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node(names.LAUNCHER_NODE, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        stream = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+        self.node.create_subscription(PoseArray, names.POSES, self.on_poses, stream, raw=True)
+        self.node.create_subscription(
+            Clock,
+            names.CLOCK,
+            self.on_clock,
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT),
+        )
+        self.times: list[float] = []
+        self.positions: list[np.ndarray] = []
+        self.headings: list[np.ndarray] = []
+        self.clock = 0.0
+        self.bad = 0
+
+    def on_poses(self, data: bytes) -> None:
+        try:
+            sec, nanosec, pos, head = decode_pose_array(data, self.n)
+        except BadMessageError:
+            self.bad += 1
+            return
+        t = sec + nanosec * 1e-9
+        if self.times and t <= self.times[-1] + TIME_EPS * 1e-3:
+            if t < self.times[-1] - TIME_EPS:  # the bridge was reset: start over
+                self.times.clear()
+                self.positions.clear()
+                self.headings.clear()
+            else:
+                return
+        self.times.append(t)
+        self.positions.append(pos)
+        self.headings.append(head)
+
+    def on_clock(self, msg: Clock) -> None:
+        self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def spin_once(self, timeout: float) -> None:
+        """Handle what has arrived, waiting at most ``timeout`` s for it."""
+        self.executor.spin_once(timeout_sec=timeout)
+
+    def call(self, srv_type: Any, name: str, request: Any, timeout: float) -> Any:
+        """Call service ``name`` and return its response; LaunchError if nobody offers
+        it or it does not answer within ``timeout`` s (spinning meanwhile)."""
+        client = self.node.create_client(srv_type, name)
+        try:
+            deadline = time.monotonic() + timeout
+            while not client.service_is_ready():
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"nobody offers {name} within {timeout:.0f} s")
+                self.spin_once(0.05)
+            future = client.call_async(request)
+            while not future.done():
+                if time.monotonic() > deadline:
+                    raise LaunchError(f"{name} did not answer within {timeout:.0f} s")
+                self.spin_once(0.05)
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    def pause_bridge(self, paused: bool, timeout: float) -> None:
+        """Call the bridge's ``/sim/pause``."""
+        self.call(SetBool, names.SIM_PAUSE, SetBool.Request(data=paused), timeout)
+
+    def bridge_stats(self, timeout: float = 30.0) -> dict[str, Any]:
+        """The bridge's ``/sim/stats`` (control-loop figures since the last call)."""
+        return json.loads(self.call(Trigger, names.SIM_STATS, Trigger.Request(), timeout).message)
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.executor.shutdown()
+            self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)

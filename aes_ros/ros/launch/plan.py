@@ -1,0 +1,295 @@
+"""What a launch runs, decided before anything starts (pure: no processes, no rclpy).
+
+From a :class:`LaunchConfig` this module makes the effective scenario file, the
+robots' parameter file (standard ``node: ros__parameters:`` layout, so it works
+with ``--params-file`` anywhere) and the command line of every node process in
+the chosen layout (:func:`node_commands`). The launcher
+(:mod:`aes_ros.ros.launch.launcher`) starts them; tests and scripts can run the
+same command lines elsewhere (tests/system/test_multihost.py runs them in
+network namespaces).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+import yaml
+
+from aes_ros.model import GAIN_FIELDS
+from aes_ros.ros import interface as names
+from aes_ros.ros.parameters import LIMIT_NAMES
+from aes_ros.scenario import Scenario
+
+
+class LaunchError(RuntimeError):
+    """The system did not start, or a process died during the run."""
+
+
+@dataclass
+class LaunchConfig:
+    """Everything ``aes-swarm launch`` decides.
+
+    scenario : formation, gains, command and Δt (the bridge's control period).
+    duration : run length in sim time [s] after every robot moves; None = the
+        scenario's ``duration``; 0 = until SIGINT/SIGTERM (or ``Launcher.request_stop``).
+    clip : clip commands to Mona's limits in the robots and the bridge (None:
+        the nodes' defaults).
+    robot_seed : the robots' noise ``seed`` parameter, combined by each robot with
+        its robot_id (None: ``seed``).
+    work_dir : where scenario.yaml, robots.yaml and logs/ go (default: out_dir,
+        else a temporary directory removed after a successful run).
+    """
+
+    scenario: Scenario
+    label: str = "launch"
+    layout: str = "per-core"
+    neighbor_source: str = "poses"
+    mode: str = "kinematic"
+    duration: float | None = None
+    seed: int = 0
+    robot_seed: int | None = None
+    record: Path | None = None
+    out_dir: Path | None = None
+    gui: bool = False
+    lockstep: bool = False
+    real_time_factor: float = 1.0
+    clip: bool | None = None
+    cores: int | None = None
+    start_timeout: float = 180.0
+    stall_timeout: float = 60.0
+    stop_timeout: float = 10.0
+    work_dir: Path | None = None
+    progress_every: float = 5.0
+    bridge_params: dict[str, Any] = field(default_factory=dict)
+    robot_params: dict[str, Any] = field(default_factory=dict)
+    supervisor_params: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        checks = [
+            ("layout", self.layout in names.LAYOUTS, _one_of(names.LAYOUTS)),
+            (
+                "neighbor_source",
+                self.neighbor_source in names.NEIGHBOR_SOURCES,
+                _one_of(names.NEIGHBOR_SOURCES),
+            ),
+            ("mode", self.mode in names.MODES, _one_of(names.MODES)),
+            (
+                "duration",
+                self.duration is None or (math.isfinite(self.duration) and self.duration >= 0),
+                "need a number >= 0",
+            ),
+            (
+                "real_time_factor",
+                math.isfinite(self.real_time_factor) and self.real_time_factor >= 0,
+                "need a number >= 0",
+            ),
+        ]
+        for name, ok, hint in checks:
+            if not ok:
+                raise ValueError(f"{name}: {getattr(self, name)!r} is not allowed; {hint}")
+
+    @property
+    def num_robots(self) -> int:
+        return len(self.scenario.nominal_positions())
+
+    @property
+    def run_time(self) -> float:
+        return float(self.scenario.duration if self.duration is None else self.duration)
+
+    @property
+    def robot_seed_value(self) -> int:
+        """The robots' ``seed`` parameter (each robot combines it with its robot_id)."""
+        return int(self.seed if self.robot_seed is None else self.robot_seed)
+
+
+def _one_of(choices: tuple[str, ...]) -> str:
+    return f"allowed: {', '.join(choices)}"
+
+
+class ProcessSpec(NamedTuple):
+    """One node process: its name (also its log file's) and its command line.
+
+    ``argv[0]`` is a console script name (``aes-sim-bridge``, …) or a path.
+    """
+
+    name: str
+    argv: list[str]
+
+
+# ----------------------------------------------------------------------------- values
+
+
+def ros_value(value: Any) -> str:
+    """A value in ``-p name:=value`` syntax (YAML; floats keep a decimal point)."""
+    if isinstance(value, bool | np.bool_):
+        return "true" if value else "false"
+    if isinstance(value, float | np.floating):
+        return repr(float(value))
+    if isinstance(value, list | tuple | np.ndarray):
+        return "[" + ",".join(ros_value(v) for v in value) + "]"
+    return str(value)
+
+
+def ros_args(params: dict[str, Any], *extra: str) -> list[str]:
+    """``--ros-args -p name:=value …`` for ``params``, then ``extra``."""
+    out = ["--ros-args"]
+    for name, value in params.items():
+        out += ["-p", f"{name}:={ros_value(value)}"]
+    return out + list(extra)
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, tuple | list | np.ndarray):
+        return [_plain(v) for v in value]
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def write_scenario(scenario: Scenario, path: Path) -> Path:
+    """The scenario as a flat YAML file that :func:`aes_ros.scenario.load` reads back."""
+    values = {k: _plain(v) for k, v in scenario.values.items()}
+    if values.get("formation_file"):
+        values["formation_file"] = str(Path(values["formation_file"]).resolve())
+    path.write_text(
+        "# Effective scenario of this launch (setup, --set overrides, robot count).\n"
+        + yaml.safe_dump(values, sort_keys=False)
+    )
+    return path
+
+
+def robot_parameters(
+    config: LaunchConfig, i: int, scenario_file: Path | None = None
+) -> dict[str, Any]:
+    """SPEC §7 parameters of robot i for a stand-alone ``aes-robot-node``."""
+    sc = config.scenario
+    _, neighbors, rest = sc.sheet()
+    valid = neighbors[i] >= 0
+    params: dict[str, Any] = {
+        "use_sim_time": True,
+        **({"scenario": str(scenario_file), "num_robots": 0} if scenario_file else {}),
+        "robot_id": i,
+        "neighbors": [int(j) for j in neighbors[i][valid]],
+        "rest_lengths": [float(v) for v in rest[i][valid]],
+        **{name: float(sc.values[name]) for name in (*GAIN_FIELDS, *LIMIT_NAMES)},
+        "neighbor_source": config.neighbor_source,
+    }
+    if config.clip is not None:
+        params["clip"] = bool(config.clip)
+    params["seed"] = config.robot_seed_value
+    params.update(config.robot_params)
+    return params
+
+
+def write_robot_params(config: LaunchConfig, path: Path, scenario_file: Path) -> Path:
+    """One ROS 2 parameter file with a ``/mona_<i>/aes_robot`` section per robot."""
+    doc = {
+        f"{names.robot_namespace(i)}/{names.ROBOT_NODE}": {
+            "ros__parameters": _plain(robot_parameters(config, i, scenario_file))
+        }
+        for i in range(config.num_robots)
+    }
+    path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None))
+    return path
+
+
+# ----------------------------------------------------------------------------- commands
+
+
+def split_robots(n: int, parts: int) -> list[list[int]]:
+    """Robot ids 0..n-1 in ``parts`` contiguous, nearly equal blocks (no empty block)."""
+    parts = max(1, min(parts, n))
+    return [list(map(int, block)) for block in np.array_split(np.arange(n), parts)]
+
+
+def bridge_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
+    """``aes-sim-bridge`` with the scenario, seed, mode, rate and stepping of ``config``."""
+    params = {
+        "scenario": str(scenario_file),
+        "num_robots": 0,
+        "seed": int(config.seed),
+        "mode": config.mode,
+        "publish_rate": 1.0 / float(config.scenario.dt),
+        "real_time_factor": float(config.real_time_factor),
+        "lockstep": bool(config.lockstep),
+        "gui": bool(config.gui),
+    }
+    if config.clip is not None:
+        params["clip"] = bool(config.clip)
+    params.update(config.bridge_params)
+    return ProcessSpec(names.SIM_BRIDGE_NODE, ["aes-sim-bridge", *ros_args(params)])
+
+
+def supervisor_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
+    """``aes-supervisor`` on the scenario, with sim time."""
+    params = {
+        "scenario": str(scenario_file),
+        "num_robots": 0,
+        "use_sim_time": True,
+        **config.supervisor_params,
+    }
+    return ProcessSpec(names.SUPERVISOR_NODE, ["aes-supervisor", *ros_args(params)])
+
+
+def robot_commands(
+    config: LaunchConfig, scenario_file: Path, robots_file: Path
+) -> list[ProcessSpec]:
+    """The robot processes of the layout: one ``aes-robot-node`` per robot
+    (``per-robot``) or ``aes-robot-host`` processes (``single``: one; ``per-core``:
+    one per core, robots split evenly, hosts named ``robot_host_<h>``)."""
+    n = config.num_robots
+    if config.layout == "per-robot":
+        files = ["--params-file", str(robots_file)]
+        return [
+            ProcessSpec(
+                f"robot_{i}",
+                ["aes-robot-node", "--ros-args", "-r", f"__ns:={names.robot_namespace(i)}", *files],
+            )
+            for i in range(n)
+        ]
+    parts = 1 if config.layout == "single" else (config.cores or os.cpu_count() or 1)
+    blocks = split_robots(n, parts)
+    out = []
+    for h, ids in enumerate(blocks):
+        params: dict[str, Any] = {
+            "scenario": str(scenario_file),
+            "num_robots": 0,
+            "use_sim_time": True,
+            "neighbor_source": config.neighbor_source,
+            "seed": config.robot_seed_value,
+        }
+        if len(blocks) > 1:
+            params["robot_ids"] = ids
+        if config.clip is not None:
+            params["clip"] = bool(config.clip)
+        params.update(config.robot_params)
+        name = f"{names.ROBOT_HOST_NODE}_{h}"
+        extra = ["-r", f"{names.ROBOT_HOST_NODE}:__node:={name}"] if len(blocks) > 1 else []
+        out.append(ProcessSpec(name, ["aes-robot-host", *ros_args(params, *extra)]))
+    return out
+
+
+def node_commands(
+    config: LaunchConfig, scenario_file: Path, robots_file: Path
+) -> list[ProcessSpec]:
+    """Every node process in start order: bridge, supervisor, then the robots."""
+    return [
+        bridge_command(config, scenario_file),
+        supervisor_command(config, scenario_file),
+        *robot_commands(config, scenario_file, robots_file),
+    ]
+
+
+def recorder_command(bag: Path, num_robots: int, python: str) -> ProcessSpec:
+    """The MCAP recorder (:mod:`aes_ros.ros.recorder`) run by ``python``."""
+    return ProcessSpec(
+        "recorder", [python, "-m", "aes_ros.ros.recorder", str(bag), "--robots", str(num_robots)]
+    )

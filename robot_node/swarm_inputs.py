@@ -1,0 +1,131 @@
+"""The ``/swarm/*`` inputs of the robots of one process: subscribed once, decoded once.
+
+Every robot process, a lone ``aes-robot-node`` as much as an ``aes-robot-host``
+with hundreds of robots, reads the swarm's topics through one :class:`SwarmInputs`:
+``/swarm/poses`` (raw, decoded with numpy: :mod:`aes_ros.ros.cdr`),
+``/swarm/desired_velocity``, ``/swarm/rotation_center`` and ``/swarm/enabled``.
+Each message is checked and converted once and handed to every robot, and the
+control law of all robots acting on a poses message is evaluated in one call
+(:func:`aes_ros.model.evaluate_robots`). So both layouts take the same path.
+
+It also knows which robots run in this process, so that a robot listens for the
+liveness of its other neighbours only (:attr:`version` changes with that set).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
+from rclpy.node import Node
+from std_msgs.msg import Bool
+
+from aes_ros.model import evaluate_robots
+from aes_ros.params import PARAMS, ParameterError
+from aes_ros.ros import interface as names
+from aes_ros.ros.cdr import decode_pose_array
+from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
+from aes_ros.ros.node_tools import ThrottledWarnings
+from aes_ros.ros.qos import LATCHED, SENSOR
+
+if TYPE_CHECKING:
+    from robot_node.node import RobotNode
+
+
+class SwarmInputs:
+    """The swarm inputs of the robots in :attr:`robots`, subscribed on ``node``."""
+
+    def __init__(self, node: Node) -> None:
+        self.node = node
+        self.robots: list[RobotNode] = []
+        #: Changes whenever a robot joins, leaves or changes its id or source.
+        self.version = 0
+        self._warn = ThrottledWarnings(node.get_logger())
+        self._poses_sub = None
+        node.create_subscription(
+            TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
+        )
+        node.create_subscription(
+            PointStamped, names.ROTATION_CENTER, self.on_rotation_center, LATCHED
+        )
+        node.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
+
+    # --- the robots of this process -------------------------------------------------
+
+    def add(self, robot: RobotNode) -> None:
+        self.robots.append(robot)
+        self.changed()
+
+    def remove(self, robot: RobotNode) -> None:
+        if robot in self.robots:
+            self.robots.remove(robot)
+            self.changed()
+
+    def changed(self) -> None:
+        """A robot changed its id or neighbour source: re-check liveness subscriptions
+        (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed at all."""
+        self.version += 1
+        wanted = any(robot.uses_poses for robot in self.robots)
+        if wanted and self._poses_sub is None:
+            self._poses_sub = self.node.create_subscription(
+                PoseArray, names.POSES, self.on_poses, SENSOR, raw=True
+            )
+        elif not wanted and self._poses_sub is not None:
+            self.node.destroy_subscription(self._poses_sub)
+            self._poses_sub = None
+
+    def local_ids(self) -> set[int]:
+        """Robot ids run by this process."""
+        return {robot.robot_id for robot in self.robots}
+
+    # --- inputs -----------------------------------------------------------------------
+
+    def on_poses(self, data: bytes) -> None:
+        """Decode ``/swarm/poses`` once; every robot using it acts on it."""
+        robots = [robot for robot in self.robots if robot.uses_poses]
+        if not robots:
+            return
+        try:
+            sec, nanosec, xy, yaw = decode_pose_array(data)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/poses: {exc}")
+            return
+        centroid = xy.mean(axis=0) if len(xy) else np.zeros(2)
+        stamp = Time(sec=sec, nanosec=nanosec)
+        stamp_ns = stamp_to_ns(stamp)
+        acting, inputs = [], []
+        for robot in robots:
+            job = robot.poses_input(stamp_ns, xy, yaw, centroid)
+            if job is not None:
+                acting.append(robot)
+                inputs.append(job)
+        for robot, result in zip(acting, evaluate_robots(inputs), strict=True):
+            robot.publish_command(stamp, result)
+
+    def on_desired_velocity(self, msg: TwistStamped) -> None:
+        """The swarm command, checked against the ranges of ``direction`` and ``omega``."""
+        try:
+            direction, omega = twist_to_drive(msg.twist)
+            PARAMS["direction"].validate(list(direction))
+            PARAMS["omega"].validate(omega)
+        except (BadMessageError, ParameterError) as exc:
+            self._warn(f"dropped /swarm/desired_velocity: {exc}")
+            return
+        for robot in self.robots:
+            robot.controller.set_drive(direction, omega)
+
+    def on_rotation_center(self, msg: PointStamped) -> None:
+        try:
+            point = point_to_array(msg.point)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/rotation_center: {exc}")
+            return
+        stamp_ns = stamp_to_ns(msg.header.stamp)
+        for robot in self.robots:
+            robot.controller.center.on_center(stamp_ns, point)
+
+    def on_enabled(self, msg: Bool) -> None:
+        for robot in self.robots:
+            robot.controller.enabled = bool(msg.data)
