@@ -250,10 +250,10 @@ def observe(n: int, duration: float, out: Path, timeout: float) -> int:
     import numpy as np
     from std_msgs.msg import Float64
 
-    from aes_ros.ros.launcher import _Monitor
+    from aes_ros.ros.launch.monitor import Monitor
     from aes_ros.ros.qos import LATCHED
 
-    mon = _Monitor(n)
+    mon = Monitor(n)
     alignment: list[tuple[float, float]] = []  # (sim time of the last poses, ψ)
     mon.node.create_subscription(
         Float64,

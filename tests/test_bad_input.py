@@ -66,7 +66,7 @@ from aes_ros.ros.conversions import (  # noqa: E402
     twist_to_drive,
 )
 from aes_ros.ros.qos import COMMAND, LATCHED, SENSOR  # noqa: E402
-from robot_node.node import REST_LENGTH_RANGE  # noqa: E402
+from robot_node.controller import REST_LENGTH_RANGE  # noqa: E402
 
 BAD_NUMBERS = [math.nan, math.inf, -math.inf, 1e300, -2.0 * MAX_COORDINATE]
 

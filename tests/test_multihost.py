@@ -4,7 +4,7 @@
 aes-sim-bridge, aes-supervisor and an observer in one namespace, one
 aes-robot-host with 8 of the 16 robots in each of two others, joined by veth
 pairs to a Linux bridge (10.77.0.0/24, addresses only inside the namespaces).
-The command lines are the launcher's (:func:`aes_ros.ros.launcher.commands`,
+The command lines are the launcher's (:func:`aes_ros.ros.launch.plan.node_commands`,
 layout per-core with two hosts), each run with ``ip netns exec``. Fast DDS uses
 UDPv4 only: processes in different namespaces still share /dev/shm, so the
 default shared-memory transport would bypass the veths and the loss rule. The
@@ -49,12 +49,13 @@ pytestmark = pytest.mark.ros
 
 rclpy = pytest.importorskip("rclpy")
 
-from aes_ros.ros.launcher import (  # noqa: E402
+from aes_ros.ros.launch.plan import (  # noqa: E402
     LaunchConfig,
-    commands,
+    node_commands,
     write_robot_params,
     write_scenario,
 )
+from aes_ros.ros.launch.processes import executable  # noqa: E402
 
 N = 16
 #: Sim time [s] sampled after every robot moves, and the tail [s] the checks average.
@@ -101,7 +102,10 @@ def run_swarm(
     )  # fmt: skip
     sc_file = write_scenario(cfg.scenario, tmp_path / "scenario.yaml")
     robots_file = write_robot_params(cfg, tmp_path / "robots.yaml", sc_file)
-    nodes = dict(commands(cfg, sc_file, robots_file))
+    nodes = {
+        name: [executable(argv[0]), *argv[1:]]
+        for name, argv in node_commands(cfg, sc_file, robots_file)
+    }
     assert list(nodes) == ["sim_bridge", "supervisor", "robot_host_0", "robot_host_1"]
     inherited = {k: v for k, v in spawn.env.items() if k not in FASTDDS_VARIABLES}
     spawn.env = {**inherited, "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", **fastdds}

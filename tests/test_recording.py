@@ -32,28 +32,19 @@ from std_msgs.msg import Float64  # noqa: E402
 from test_robot_node import TIMEOUT, Driver  # noqa: E402
 from test_ros_system import assert_no_orphans  # noqa: E402
 
+from aes_ros.ros.bag import BagWriter, bag_is_closed, read_bag  # noqa: E402
 from aes_ros.ros.conversions import stamp_to_ns  # noqa: E402
 from aes_ros.ros.qos import COMMAND_KEPT, LATCHED  # noqa: E402
-from aes_ros.ros.recorder import (  # noqa: E402
-    FLUSH_PERIOD,
-    BagWriter,
-    RecorderNode,
-    bag_is_closed,
-    read_bag,
-)
+from aes_ros.ros.recorder import FLUSH_PERIOD, RecorderNode  # noqa: E402
 
-ROBOT_COUNT = re.compile(r"\[published\]: /mona_(\d+): published (\d+) cmd_vel")
-SUPERVISOR_COUNT = re.compile(r"\[published\]: /supervisor: (.*)")
+COUNTS = re.compile(r"\[published\]: (/\S+): (.*)")
 
 
 def published_counts(logs: Path) -> dict[str, int]:
     """Messages per topic as counted by the robot nodes and the supervisor."""
     counts: dict[str, int] = {}
     for log in logs.glob("*.log"):
-        text = log.read_text()
-        for robot, n in ROBOT_COUNT.findall(text):
-            counts[f"/mona_{robot}/cmd_vel"] = int(n)
-        for line in SUPERVISOR_COUNT.findall(text):
+        for _node, line in COUNTS.findall(log.read_text()):
             for item in line.split(", "):
                 topic, n = item.rsplit(" ", 1)
                 counts[topic] = int(n)

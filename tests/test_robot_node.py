@@ -525,12 +525,11 @@ def test_host_evaluates_its_robots_at_once_exactly_as_one_by_one() -> None:
     """``aes-robot-host`` evaluates all its robots in one batched call: the commands and
     forces are bit for bit those of robot_command() per robot, with neighbour counts,
     gains, noise, limits and rotation centres differing from robot to robot."""
-    from robot_node.host import evaluate
-    from robot_node.node import ControlInput
+    from aes_ros.model import RobotInput, evaluate_robots
 
     rng = np.random.default_rng(3)
 
-    def jobs() -> list[ControlInput]:
+    def jobs() -> list[RobotInput]:
         out = []
         for r in range(7):
             k = [0, 1, 3, 6, 4, 2, 6][r]
@@ -539,9 +538,7 @@ def test_host_evaluates_its_robots_at_once_exactly_as_one_by_one() -> None:
             noisy = gains.d_r > 0 or gains.d_theta > 0
             center = None if r == 4 else (0.3 * r, -0.2)
             out.append(
-                ControlInput(
-                    None,
-                    None,
+                RobotInput(
                     positions[r],
                     headings[r],
                     neighbours[r][:k],
@@ -562,7 +559,7 @@ def test_host_evaluates_its_robots_at_once_exactly_as_one_by_one() -> None:
     rests[3, 2] = 0.0  # a rest length latched on top of its neighbour
     batch_jobs, single_jobs = jobs(), jobs()
     for _ in range(3):  # each robot's generator advances alike, step after step
-        batch = evaluate(batch_jobs)
+        batch = evaluate_robots(batch_jobs)
         single = [robot_command(*job.arguments()) for job in single_jobs]
         for a, b in zip(batch, single, strict=True):
             assert (a.linear, a.angular) == (b.linear, b.angular)

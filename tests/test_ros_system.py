@@ -28,6 +28,7 @@ import numpy as np
 import pytest
 
 from aes_ros import metrics, scenario, simulator
+from aes_ros.report import load_trajectory
 
 pytestmark = pytest.mark.ros
 
@@ -40,9 +41,9 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
+from aes_ros.ros.bag import read_bag  # noqa: E402
 from aes_ros.ros.conversions import poses_to_arrays  # noqa: E402
 from aes_ros.ros.qos import LATCHED  # noqa: E402
-from aes_ros.ros.recorder import read_bag  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 BIN = Path(sys.executable).parent
@@ -241,7 +242,7 @@ def test_bad_arguments_exit_2_naming_the_option(args: list[str], option: str) ->
 
 def test_bag_schemas_are_complete_ros2msg_definitions() -> None:
     """A schema holds the type's .msg text and every type it uses (rosbag2 layout)."""
-    from aes_ros.ros.recorder import message_definition
+    from aes_ros.ros.bag import message_definition
 
     text = message_definition("geometry_msgs/msg/PoseArray")
     assert text.startswith("# An array of poses")
@@ -252,21 +253,21 @@ def test_bag_schemas_are_complete_ros2msg_definitions() -> None:
 
 
 def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
-    from aes_ros.ros.launcher import LaunchConfig, commands, split_robots
+    from aes_ros.ros.launch.plan import LaunchConfig, node_commands, split_robots
 
     assert split_robots(10, 2) == [[0, 1, 2, 3, 4], [5, 6, 7, 8, 9]]
     assert split_robots(3, 8) == [[0], [1], [2]]
     sc = scenario.load("linear").with_robots(6)
     files = (tmp_path / "s.yaml", tmp_path / "r.yaml")
-    per_core = commands(LaunchConfig(sc, layout="per-core", cores=2), *files)
+    per_core = node_commands(LaunchConfig(sc, layout="per-core", cores=2), *files)
     assert [name for name, _ in per_core] == [
         "sim_bridge", "supervisor", "robot_host_0", "robot_host_1"
     ]  # fmt: skip
     assert "robot_ids:=[3,4,5]" in per_core[3][1]
     assert "robot_host:__node:=robot_host_1" in per_core[3][1]
-    per_robot = commands(LaunchConfig(sc, layout="per-robot"), *files)
+    per_robot = node_commands(LaunchConfig(sc, layout="per-robot"), *files)
     assert len(per_robot) == 2 + 6 and "__ns:=/mona_5" in per_robot[-1][1]
-    single = commands(LaunchConfig(sc, layout="single"), *files)
+    single = node_commands(LaunchConfig(sc, layout="single"), *files)
     assert len(single) == 3 and not any("robot_ids" in a for a in single[2][1])
 
 
@@ -287,8 +288,8 @@ def test_linear_moves_west_orders_and_records_a_bag(spawn, ros_env, tmp_path) ->
     assert "processes stopped cleanly" in log, log  # every node exited 0 on SIGINT
     for name in ("trajectory.npz", "metrics.csv", "snapshots.png", "metrics.png"):
         assert (out / name).stat().st_size > 0, name
-    data = np.load(out / "trajectory.npz")
-    times, pos, head = data["times"], data["positions"], data["headings"]
+    traj = load_trajectory(out / "trajectory.npz")
+    times, pos, head = traj.times, traj.positions[0], traj.headings[0]
     assert pos.shape[1:] == (16, 2) and times[-1] - times[0] >= 15.0 - 1e-6
     moved = pos[-1].mean(axis=0) - pos[0].mean(axis=0)
     assert moved[0] < -0.5, f"centroid moved {moved}, expected west"
@@ -336,8 +337,8 @@ def test_ros_system_equals_offline_simulator(spawn, ros_env, tmp_path) -> None:
         "--set", "d_r=0", "--set", "d_theta=0", "--set", "clip=false", "--out", str(out),
     )  # fmt: skip
     assert rc == 0, log
-    data = np.load(out / "trajectory.npz")
-    times, pos, head = data["times"], data["positions"], data["headings"]
+    traj = load_trajectory(out / "trajectory.npz")
+    times, pos, head = traj.times, traj.positions[0], traj.headings[0]
 
     sc = scenario.load("linear", {"d_r": 0.0, "d_theta": 0.0, "duration": 10.0}).with_robots(16)
     ref = simulator.simulate(sc, [seed], noise=False)
@@ -368,8 +369,8 @@ def test_rotation_turns_counter_clockwise_about_the_centroid(spawn, ros_env, tmp
         timeout=180.0,
     )  # fmt: skip
     assert rc == 0, log
-    data = np.load(out / "trajectory.npz")
-    times, pos = data["times"], data["positions"]
+    traj = load_trajectory(out / "trajectory.npz")
+    times, pos = traj.times, traj.positions[0]
     later = times >= times[0] + 4.0
     omega = metrics.rotation_angle(pos[later][:-1], pos[later][1:]) / np.diff(times[later])
     assert omega.mean() > 0.03, f"mean angular velocity {omega.mean():+.3f} rad/s"
