@@ -1,6 +1,6 @@
 """Tuning the gains with TCACS, and the paper's tuning study (SPEC §3; Raoufi et al. 2019).
 
-:func:`tune` runs TCACS (:mod:`aes_ros.tcacs`) on the Monte-Carlo cost J (E10,
+:func:`tune` runs TCACS (:mod:`aes_ros.optim.tcacs`) on the Monte-Carlo cost J (E10,
 :mod:`aes_ros.cost`) and :func:`write_tune_outputs` writes what
 ``aes-swarm optimize`` promises (result.json, history.csv, convergence.png).
 
@@ -43,8 +43,9 @@ import numpy as np
 from scipy.optimize import OptimizeResult
 from tqdm import tqdm
 
-from aes_ros import simulator, tcacs
+from aes_ros import simulator
 from aes_ros.cost import GAIN_NAMES, MonteCarloCost, run_costs
+from aes_ros.optim import tcacs
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.scenario import Scenario
 

@@ -43,8 +43,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from aes_ros import scenario, study, tcacs
+from aes_ros import scenario, study
 from aes_ros.cost import MonteCarloCost
+from aes_ros.optim import tcacs
 
 BUDGET = 300
 BATCH = 15

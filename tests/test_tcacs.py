@@ -15,8 +15,9 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros import tcacs
-from aes_ros.tcacs import BENCHMARKS, TCACSSolver, default_options, minimize, spread_weights
+from aes_ros.optim import tcacs
+from aes_ros.optim.benchmarks import BENCHMARKS
+from aes_ros.optim.tcacs import TCACSSolver, default_options, minimize, spread_weights
 
 REFERENCE = [name for name, b in BENCHMARKS.items() if b.ref_success is not None]
 

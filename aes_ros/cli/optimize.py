@@ -16,8 +16,9 @@ import argparse
 import time
 from pathlib import Path
 
-from aes_ros import study, tcacs
+from aes_ros import study
 from aes_ros.cli.simulate import add_scenario_options, load_scenario
+from aes_ros.optim import tcacs
 from aes_ros.params import ParameterError
 
 
