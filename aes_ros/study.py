@@ -1,7 +1,7 @@
 """Tuning the gains with TCACS, and the paper's tuning study (SPEC §3; Raoufi et al. 2019).
 
 :func:`tune` runs TCACS (:mod:`aes_ros.optim.tcacs`) on the Monte-Carlo cost J (E10,
-:mod:`aes_ros.cost`) and :func:`write_tune_outputs` writes what
+:mod:`aes_ros.optim.cost`) and :func:`write_tune_outputs` writes what
 ``aes-swarm optimize`` promises (result.json, history.csv, convergence.png).
 
 :func:`run_study` is the paper's study in one call (``aes-swarm study``):
@@ -44,8 +44,8 @@ from scipy.optimize import OptimizeResult
 from tqdm import tqdm
 
 from aes_ros import simulator
-from aes_ros.cost import GAIN_NAMES, MonteCarloCost, run_costs
 from aes_ros.optim import tcacs
+from aes_ros.optim.cost import TUNED_GAINS, MonteCarloCost, run_costs
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.scenario import Scenario
 
@@ -85,10 +85,10 @@ def parse_bounds(text: str, base: Mapping[str, tuple[float, float]] = DEFAULT_BO
     for item in [s for s in text.split(",") if s.strip()]:
         name, sep, interval = item.partition("=")
         name = name.strip()
-        if not sep or name not in GAIN_NAMES:
+        if not sep or name not in TUNED_GAINS:
             raise ParameterError(
                 f"--bounds: {item.strip()!r} is not NAME=LO:HI with NAME one of "
-                f"{', '.join(GAIN_NAMES)}"
+                f"{', '.join(TUNED_GAINS)}"
             )
         lo_text, sep, hi_text = interval.partition(":")
         try:
@@ -309,8 +309,8 @@ def evaluate(scenario: Scenario, gain_sets: list[GainSet], seeds: list[int]) -> 
 
     Returns per gain set: ψ(t) and F(t) (runs × T+1) and the per-run sums Σψ and ΣF.
     """
-    cost = MonteCarloCost(scenario, seeds=seeds, names=GAIN_NAMES)
-    per_set = [cost.gains([g.gains[n] for n in GAIN_NAMES]) for g in gain_sets]
+    cost = MonteCarloCost(scenario, seeds=seeds, names=TUNED_GAINS)
+    per_set = [cost.gains([g.gains[n] for n in TUNED_GAINS]) for g in gain_sets]
     few = seeds[:STRAIN_RUNS]  # cohesion at t_f from a few runs (recording all needs GBs)
     with np.errstate(all="ignore"):
         res = simulator.simulate(
@@ -401,7 +401,7 @@ def run_study(
                 {
                     "setting": label,
                     "restart": restart,
-                    **{n: outcome.best[n] for n in GAIN_NAMES},
+                    **{n: outcome.best[n] for n in TUNED_GAINS},
                     "J_tuning": float(outcome.result.fun),
                     "evaluations": int(outcome.result.nfev),
                     "wall_time_s": round(outcome.wall_time_s, 2),
@@ -456,7 +456,7 @@ def _table_rows(
 ) -> list[dict[str, Any]]:
     rows = []
     for i, g in enumerate(gain_sets):
-        row: dict[str, Any] = {"gains": g.label, **{n: g.gains[n] for n in GAIN_NAMES}}
+        row: dict[str, Any] = {"gains": g.label, **{n: g.gains[n] for n in TUNED_GAINS}}
         for wname, (w1n, w2) in WEIGHTS.items():
             J = w1n / n_robots * ev["sum_force"][i] + w2 * ev["sum_psi"][i]
             row[f"J_{wname}_mean"] = float(np.mean(J))
@@ -517,7 +517,7 @@ def _slices(scenario: Scenario, mc: int) -> dict[str, tuple[np.ndarray, np.ndarr
     X, where = [], []
     for name, grid in grids.items():
         for v in grid:
-            X.append([v if n == name else PAPER_GAINS[n] for n in GAIN_NAMES])
+            X.append([v if n == name else PAPER_GAINS[n] for n in TUNED_GAINS])
             where.append(name)
     J = cost(np.array(X))
     where_arr = np.array(where)

@@ -44,8 +44,8 @@ import numpy as np
 from scipy.optimize import differential_evolution
 
 from aes_ros import scenario, study
-from aes_ros.cost import MonteCarloCost
 from aes_ros.optim import tcacs
+from aes_ros.optim.cost import MonteCarloCost
 
 BUDGET = 300
 BATCH = 15

@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aes_ros import cost as cost_module
 from aes_ros import scenario, simulator, study
 from aes_ros.cli import main
-from aes_ros.cost import MonteCarloCost, NonFiniteCostWarning
+from aes_ros.optim import cost as cost_module
+from aes_ros.optim.cost import MonteCarloCost, NonFiniteCostWarning
 from aes_ros.params import ParameterError
 
 PAPER = [0.066, 0.97, 1.28]
