@@ -44,6 +44,7 @@ from scipy.optimize import OptimizeResult
 from tqdm import tqdm
 
 from aes_ros import simulator
+from aes_ros.metrics import spring_strain
 from aes_ros.optim import tcacs
 from aes_ros.optim.cost import TUNED_GAINS, MonteCarloCost, run_costs
 from aes_ros.params import PARAMS, ParameterError
@@ -334,19 +335,6 @@ def evaluate(scenario: Scenario, gain_sets: list[GainSet], seeds: list[int]) -> 
 
 #: Held-out runs per gain set whose final formation is recorded for the strain column.
 STRAIN_RUNS = 10
-
-
-def spring_strain(positions: np.ndarray, neighbors: np.ndarray, rest: np.ndarray) -> np.ndarray:
-    """Mean relative spring deformation |‖r_ij‖ − l_ij| / l_ij of each formation.
-
-    positions : (..., N, 2); neighbors, rest : (N, K), −1 padded. Returns (...).
-    0 for the nominal sheet; ≳ 1 means the formation has come apart.
-    """
-    active = neighbors >= 0
-    offsets = positions[..., np.where(active, neighbors, 0), :] - positions[..., :, None, :]
-    dist = np.linalg.norm(offsets, axis=-1)
-    rel = np.abs(dist - rest) / np.where(active, rest, 1.0)
-    return rel[..., active].mean(axis=-1)
 
 
 def run_study(

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aes_ros import scenario, simulator, study
+from aes_ros import metrics, scenario, simulator, study
 from aes_ros.cli import main
 from aes_ros.optim import cost as cost_module
 from aes_ros.optim.cost import MonteCarloCost, NonFiniteCostWarning
@@ -137,9 +137,9 @@ def test_parse_bounds() -> None:
 
 def test_spring_strain(small: scenario.Scenario) -> None:
     nominal, neighbors, rest = small.sheet()
-    assert study.spring_strain(nominal, neighbors, rest) == pytest.approx(0.0, abs=1e-12)
+    assert metrics.spring_strain(nominal, neighbors, rest) == pytest.approx(0.0, abs=1e-12)
     stretched = np.stack([nominal * 1.1, nominal * 0.5])
-    assert study.spring_strain(stretched, neighbors, rest) == pytest.approx([0.1, 0.5])
+    assert metrics.spring_strain(stretched, neighbors, rest) == pytest.approx([0.1, 0.5])
 
 
 SMALL_ARGS = ["--set", "rows=3", "--set", "cols=3", "--set", "duration=2"]
