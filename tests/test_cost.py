@@ -14,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aes_ros import metrics, scenario, simulator, study
+from aes_ros import metrics, scenario, simulator
 from aes_ros.cli import main
 from aes_ros.optim import cost as cost_module
+from aes_ros.optim import tuning
 from aes_ros.optim.cost import MonteCarloCost, NonFiniteCostWarning
 from aes_ros.params import ParameterError
 
@@ -112,7 +113,7 @@ def test_bad_input_names_the_argument(small: scenario.Scenario) -> None:
 
 def test_tune_improves_on_its_seeds_and_respects_the_box(small: scenario.Scenario) -> None:
     bounds = {"alpha": (0.001, 0.5), "beta": (0.01, 5.0)}  # k stays at the scenario's 1.28
-    out = study.tune(small, bounds=bounds, evals=60, mc=2, seed=1)
+    out = tuning.tune(small, bounds=bounds, evals=60, mc=2, seed=1)
     res = out.result
     assert res.nfev == 60 and res.x.shape == (2,)
     assert res.fun < np.min(res.history_fun[:15])  # better than the first iteration's best
@@ -121,8 +122,8 @@ def test_tune_improves_on_its_seeds_and_respects_the_box(small: scenario.Scenari
 
 
 def test_parse_bounds() -> None:
-    b = study.parse_bounds("alpha=0.01:0.2, k=1:3")
-    assert b == {"alpha": (0.01, 0.2), "beta": study.DEFAULT_BOUNDS["beta"], "k": (1.0, 3.0)}
+    b = tuning.parse_bounds("alpha=0.01:0.2, k=1:3")
+    assert b == {"alpha": (0.01, 0.2), "beta": tuning.DEFAULT_BOUNDS["beta"], "k": (1.0, 3.0)}
     for text, field in [
         ("alpha=0.2:0.01", "alpha"),
         ("alpha=0.1:0.1", "alpha"),
@@ -132,7 +133,7 @@ def test_parse_bounds() -> None:
         ("k=-1:2", "k"),
     ]:
         with pytest.raises(ParameterError, match=f"--bounds: .*{field}"):
-            study.parse_bounds(text)
+            tuning.parse_bounds(text)
 
 
 def test_spring_strain(small: scenario.Scenario) -> None:

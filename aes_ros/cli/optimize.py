@@ -6,7 +6,7 @@ Examples::
     aes-swarm optimize --w1 0.1 --w2 -1 --bounds k=1:3 --seed 2 --out out/tune-force
     aes-swarm study --out docs/study                       # default vs tuned, weight variants
 
-Default search box: alpha=0.001:0.5, beta=0.01:5, k=0.5:5 (see aes_ros.study
+Default search box: alpha=0.001:0.5, beta=0.01:5, k=0.5:5 (see aes_ros.optim.tuning
 for why k stops at 0.5: J rewards a weak sheet, and k -> 0 tears it).
 """
 
@@ -16,9 +16,8 @@ import argparse
 import time
 from pathlib import Path
 
-from aes_ros import study
 from aes_ros.cli.simulate import add_scenario_options, load_scenario
-from aes_ros.optim import tcacs
+from aes_ros.optim import study, tcacs, tuning
 from aes_ros.params import ParameterError
 
 
@@ -28,7 +27,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _default_bounds_text() -> str:
-    return ",".join(f"{n}={lo:g}:{hi:g}" for n, (lo, hi) in study.DEFAULT_BOUNDS.items())
+    return ",".join(f"{n}={lo:g}:{hi:g}" for n, (lo, hi) in tuning.DEFAULT_BOUNDS.items())
 
 
 def _register_optimize(sub: argparse._SubParsersAction) -> None:
@@ -101,12 +100,12 @@ def run_optimize(args: argparse.Namespace) -> int:
         raise ParameterError(
             f"--weighting: {args.weighting!r} is not allowed; use one of {tcacs.WEIGHTINGS}"
         )
-    bounds = study.parse_bounds(args.bounds)
+    bounds = tuning.parse_bounds(args.bounds)
     sc = load_scenario(args)
     label = args.scenario.stem if args.scenario is not None else args.setup
     start = time.perf_counter()
     try:
-        outcome = study.tune(
+        outcome = tuning.tune(
             sc,
             bounds=bounds,
             evals=args.evals,
@@ -123,8 +122,8 @@ def run_optimize(args: argparse.Namespace) -> int:
     except ValueError as exc:  # e.g. gamma out of range, a non-finite weight
         raise ParameterError(str(exc)) from None
     outcome.extra["total_time_s"] = round(time.perf_counter() - start, 3)
-    study.write_tune_outputs(args.out, outcome, sc, label)
-    print(study.summary_line(outcome, args.out))
+    tuning.write_tune_outputs(args.out, outcome, sc, label)
+    print(tuning.summary_line(outcome, args.out))
     return 0
 
 
