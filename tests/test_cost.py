@@ -7,6 +7,7 @@ Small swarms and short runs keep this quick; the paper-scale run is a benchmark
 from __future__ import annotations
 
 import csv
+import inspect
 import json
 import warnings
 from pathlib import Path
@@ -15,9 +16,9 @@ import numpy as np
 import pytest
 
 from aes_ros import metrics, scenario, simulator
-from aes_ros.cli import main
+from aes_ros.cli import build_parser, main
 from aes_ros.optim import cost as cost_module
-from aes_ros.optim import tuning
+from aes_ros.optim import tcacs, tuning
 from aes_ros.optim.cost import MonteCarloCost, NonFiniteCostWarning
 from aes_ros.params import ParameterError
 
@@ -171,9 +172,13 @@ def test_optimize_command_writes_its_outputs(tmp_path: Path, capsys) -> None:
         (["--bounds", "alpha=0.5:0.1"], "--bounds"),
         (["--bounds", "k=:"], "--bounds"),
         (["--evals", "10"], "--evals"),
+        (["--evals", "0"], "--evals"),
         (["--mc", "0"], "--mc"),
+        (["--ants", "1"], "--ants"),
+        (["--ants", "20", "--evals", "19"], "--evals"),
         (["--weighting", "wheel"], "--weighting"),
-        (["--gamma", "2"], "gamma"),
+        (["--gamma", "2"], "--gamma"),
+        (["--m", "-1"], "--m"),
         (["--setup", "nowhere"], "--setup"),
     ],
 )
@@ -183,6 +188,37 @@ def test_optimize_bad_input_exits_2_naming_the_field(
     rc = main(["optimize", *SMALL_ARGS, "--no-progress", *args, "--out", str(tmp_path)])
     assert rc == 2
     assert field in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["--evals", "10"], "--evals"),  # fewer than one iteration of the paper's 15 ants
+        (["--evals", "0"], "--evals"),
+        (["--mc", "0"], "--mc"),
+        (["--restarts", "0"], "--restarts"),
+        (["--eval-runs", "0"], "--eval-runs"),
+    ],
+)
+def test_study_bad_input_exits_2_naming_the_field(
+    tmp_path: Path, capsys, args: list[str], field: str
+) -> None:
+    out = tmp_path / "study"
+    rc = main(["study", *SMALL_ARGS, "--no-progress", *args, "--out", str(out)])
+    assert rc == 2
+    assert capsys.readouterr().err.startswith(f"aes-swarm study: error: {field}:")
+    assert not out.exists()
+
+
+def test_paper_options_are_the_defaults_of_tune_and_the_cli() -> None:
+    paper = dict(tcacs.PAPER_OPTIONS)
+    params = inspect.signature(tuning.tune).parameters
+    assert {k: params[k].default for k in paper} == paper
+    assert params["evals"].default == tcacs.DEFAULT_MAX_EVALS
+    args = build_parser().parse_args(["optimize", "--out", "x"])
+    assert (args.ants, args.weighting, args.gamma, args.m) == tuple(paper.values())
+    assert args.evals == tcacs.DEFAULT_MAX_EVALS
+    assert build_parser().parse_args(["study", "--out", "x"]).evals == tcacs.DEFAULT_MAX_EVALS
 
 
 def test_study_command_smoke(tmp_path: Path, capsys) -> None:

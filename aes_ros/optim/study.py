@@ -24,6 +24,7 @@ from aes_ros import simulator
 from aes_ros.metrics import spring_strain
 from aes_ros.optim import figures
 from aes_ros.optim.cost import TUNED_GAINS, MonteCarloCost, run_costs
+from aes_ros.optim.tcacs import DEFAULT_MAX_EVALS
 from aes_ros.optim.tuning import (
     DEFAULT_BOUNDS,
     PAPER_GAINS,
@@ -87,7 +88,7 @@ def run_study(
     out: Path,
     scenario: Scenario,
     *,
-    evals: int = 300,
+    evals: int = DEFAULT_MAX_EVALS,
     mc: int = 10,
     restarts: int = 3,
     eval_runs: int = 50,

@@ -9,20 +9,32 @@ to ``(k,)`` costs, so the swarm simulator can run all ants (× all Monte-Carlo
 runs) in one kernel call.
 
 Public interface: :func:`minimize` (thin function) over :class:`TCACSSolver`
-(the state machine), plus the steps :func:`spread_weights` and
-:func:`fit_frame`. The standard test functions it is validated on are in
-:mod:`aes_ros.optim.benchmarks`.
+(the state machine), the option check :func:`check_options` both share with
+the command line, the paper's options :data:`PAPER_OPTIONS`, and the steps
+:func:`spread_weights` and :func:`fit_frame`. The standard test functions it
+is validated on are in :mod:`aes_ros.optim.benchmarks`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
 WEIGHTINGS = ("roulette", "rank")
+#: The paper's options (SPEC §3.2), the defaults of :func:`minimize`, of the
+#: tuning and of ``aes-swarm optimize``; also the reference's defaults for n >= 4.
+PAPER_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+)
+#: The paper's budget of cost evaluations (SPEC §3.2).
+DEFAULT_MAX_EVALS = 300
+#: Default spatial convergence radius of the stop rule (SPEC §6 step 7).
+DEFAULT_TOL = 1e-4
 
 #: Seeding: retries per seed point before the last draw is accepted anyway (the
 #: reference implementation has no cap and can hang).
@@ -39,12 +51,12 @@ def minimize(
     f: Callable[[np.ndarray], np.ndarray],
     bounds: Sequence[tuple[float, float]],
     *,
-    n_ants: int = 15,
-    weighting: str = "roulette",
-    gamma: float = 0.5,
-    m: float = 2,
-    max_evals: int = 300,
-    tol: float = 1e-4,
+    n_ants: int = PAPER_OPTIONS["n_ants"],
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
+    m: float = PAPER_OPTIONS["m"],
+    max_evals: int = DEFAULT_MAX_EVALS,
+    tol: float = DEFAULT_TOL,
     seed: int | np.random.Generator | None = None,
     callback: Callable[[OptimizeResult], bool | None] | None = None,
 ) -> OptimizeResult:
@@ -66,10 +78,12 @@ def minimize(
         Share of the cost term in the weights (the rest is the distance term).
     m : float >= 0
         The "PCA factor": axes are picked with probability ∝ ‖c‖^(2m).
+        ``n_ants``, ``weighting``, ``gamma`` and ``m`` default to the paper's
+        :data:`PAPER_OPTIONS` (15 ants, roulette, γ = 0.5, m = 2).
     max_evals : int >= n_ants
-        Budget; the run has round(max_evals / n_ants) iterations, so ``nfev``
-        can exceed ``max_evals`` by up to n_ants / 2 (1000 evaluations with 15
-        ants gives 67 iterations, 1005 evaluations).
+        Budget (default the paper's 300); the run has round(max_evals / n_ants)
+        iterations, so ``nfev`` can exceed ``max_evals`` by up to n_ants / 2
+        (1000 evaluations with 15 ants gives 67 iterations, 1005 evaluations).
     tol : float >= 0
         Spatial convergence radius: stop as soon as every promising point lies
         within ``tol`` of the best point.
@@ -93,9 +107,8 @@ def minimize(
     ------
     ValueError
         Naming the argument: bad bounds (empty, n = 1, reversed or not
-        finite), ``max_evals < n_ants``, unknown ``weighting``, ``gamma``
-        outside [0, 1], negative ``m`` or ``tol``, ``n_ants < 2``, or ``f``
-        returning the wrong shape.
+        finite), a bad option (see :func:`check_options`), or ``f`` returning
+        the wrong shape.
 
     Notes
     -----
@@ -163,23 +176,74 @@ def minimize(
     return solver.solve()
 
 
+def check_options(
+    *,
+    n_ants: int = PAPER_OPTIONS["n_ants"],
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
+    m: float = PAPER_OPTIONS["m"],
+    max_evals: int = DEFAULT_MAX_EVALS,
+    tol: float = DEFAULT_TOL,
+    labels: Mapping[str, str] | None = None,
+) -> None:
+    """Check the options of :func:`minimize`; raise ValueError naming the first bad one.
+
+    Options left out take :func:`minimize`'s defaults. ``labels`` renames
+    options in the messages, e.g. ``{"n_ants": "--ants"}`` for a command line;
+    by default an option is called by its parameter name.
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: …"`` when ``n_ants`` is not an integer >= 2, ``max_evals``
+        is not an integer or is less than ``n_ants``, ``weighting`` is not one
+        of :data:`WEIGHTINGS`, ``gamma`` is outside [0, 1], or ``m`` or ``tol``
+        is negative or not finite.
+    """
+    name = {o: o for o in ("n_ants", "weighting", "gamma", "m", "max_evals", "tol")}
+    name.update(labels or {})
+    if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
+        raise ValueError(f"{name['n_ants']}: {n_ants!r} is not allowed; need an integer >= 2")
+    if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
+        raise ValueError(f"{name['max_evals']}: {max_evals!r} is not allowed; need an integer")
+    if max_evals < n_ants:
+        raise ValueError(
+            f"{name['max_evals']}: {max_evals} is less than {name['n_ants']} ({n_ants}); "
+            "need at least one iteration of ants"
+        )
+    if weighting not in WEIGHTINGS:
+        raise ValueError(
+            f"{name['weighting']}: {weighting!r} is not allowed; use one of {WEIGHTINGS}"
+        )
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"{name['gamma']}: {gamma!r} is not allowed; need a number in [0, 1]")
+    if not (m >= 0 and math.isfinite(m)):
+        raise ValueError(f"{name['m']}: {m!r} is not allowed; need a finite number >= 0")
+    if not (tol >= 0 and math.isfinite(tol)):
+        raise ValueError(f"{name['tol']}: {tol!r} is not allowed; need a finite number >= 0")
+
+
 def n_iterations(max_evals: int, n_ants: int) -> int:
     """Iterations of a run: round(max_evals / n_ants), halves rounded up like the reference."""
     return max(1, math.floor(max_evals / n_ants + 0.5))
 
 
-def default_options(n: int) -> dict:
+def default_options(n: int) -> dict[str, Any]:
     """The reference's default options for dimension n (SPEC §6 validation table).
 
-    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: 15 ants, roulette, γ = 0.5, m = 2.
+    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: :data:`PAPER_OPTIONS`
+    (15 ants, roulette, γ = 0.5, m = 2).
     """
     if n < 4:
         return {"n_ants": 10, "weighting": "rank", "gamma": 1.0, "m": 1}
-    return {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+    return dict(PAPER_OPTIONS)
 
 
 def spread_weights(
-    costs: np.ndarray, distances: np.ndarray, weighting: str = "roulette", gamma: float = 0.5
+    costs: np.ndarray,
+    distances: np.ndarray,
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
 ) -> np.ndarray:
     """Weights W_k of the P−1 promising points other than x* (SPEC §6 step 6).
 
@@ -289,34 +353,20 @@ class TCACSSolver:
         f: Callable[[np.ndarray], np.ndarray],
         bounds: Sequence[tuple[float, float]],
         *,
-        n_ants: int = 15,
-        weighting: str = "roulette",
-        gamma: float = 0.5,
-        m: float = 2,
-        max_evals: int = 300,
-        tol: float = 1e-4,
+        n_ants: int = PAPER_OPTIONS["n_ants"],
+        weighting: str = PAPER_OPTIONS["weighting"],
+        gamma: float = PAPER_OPTIONS["gamma"],
+        m: float = PAPER_OPTIONS["m"],
+        max_evals: int = DEFAULT_MAX_EVALS,
+        tol: float = DEFAULT_TOL,
         seed: int | np.random.Generator | None = None,
         callback: Callable[[OptimizeResult], bool | None] | None = None,
     ) -> None:
         self.lower, self.upper = _check_bounds(bounds)
         self.n = len(self.lower)
-        if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
-            raise ValueError(f"n_ants: {n_ants!r} is not allowed; need an integer >= 2")
-        if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
-            raise ValueError(f"max_evals: {max_evals!r} is not allowed; need an integer")
-        if max_evals < n_ants:
-            raise ValueError(
-                f"max_evals: {max_evals} is less than n_ants ({n_ants}); "
-                "need at least one iteration of ants"
-            )
-        if weighting not in WEIGHTINGS:
-            raise ValueError(f"weighting: {weighting!r} is not allowed; use one of {WEIGHTINGS}")
-        if not 0.0 <= gamma <= 1.0:
-            raise ValueError(f"gamma: {gamma!r} is not allowed; need a number in [0, 1]")
-        if not (m >= 0 and math.isfinite(m)):
-            raise ValueError(f"m: {m!r} is not allowed; need a finite number >= 0")
-        if not (tol >= 0 and math.isfinite(tol)):
-            raise ValueError(f"tol: {tol!r} is not allowed; need a finite number >= 0")
+        check_options(
+            n_ants=n_ants, weighting=weighting, gamma=gamma, m=m, max_evals=max_evals, tol=tol
+        )
         self.f, self.callback = f, callback
         self.n_ants, self.weighting = int(n_ants), weighting
         self.gamma, self.m, self.tol = float(gamma), float(m), float(tol)
