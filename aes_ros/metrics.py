@@ -2,7 +2,8 @@
 
 All take the noise-free force f_i of E4. Shapes: ``forces (..., N, 2)``,
 ``headings (..., N)`` [rad], ``positions (..., N, 2)`` [m]; results have shape
-``(...)``.
+``(...)``. Beyond SPEC §2, :func:`spring_strain` measures how far the sheet
+has come apart (the tuning study's cohesion column).
 """
 
 from __future__ import annotations
@@ -65,3 +66,16 @@ def angular_velocity(positions: np.ndarray, dt: float) -> np.ndarray:
     positions : (..., T, N, 2) sampled every ``dt`` [s]. Returns (..., T-1).
     """
     return rotation_angle(positions[..., :-1, :, :], positions[..., 1:, :, :]) / dt
+
+
+def spring_strain(positions: np.ndarray, neighbors: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """Mean relative spring deformation |‖r_ij‖ − l_ij| / l_ij of each formation.
+
+    positions : (..., N, 2); neighbors, rest : (N, K), −1 padded. Returns (...).
+    0 for the nominal sheet; ≳ 1 means the formation has come apart.
+    """
+    active = neighbors >= 0
+    offsets = positions[..., np.where(active, neighbors, 0), :] - positions[..., :, None, :]
+    dist = np.linalg.norm(offsets, axis=-1)
+    rel = np.abs(dist - rest) / np.where(active, rest, 1.0)
+    return rel[..., active].mean(axis=-1)

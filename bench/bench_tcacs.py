@@ -1,6 +1,6 @@
 """TCACS against the reference behaviour of its authors' implementation (SPEC §6).
 
-Runs every function of :data:`aes_ros.tcacs.BENCHMARKS` ``--runs`` times (100
+Runs every function of :data:`aes_ros.optim.benchmarks.BENCHMARKS` ``--runs`` times (100
 by default) with the dimension's default options (n < 4: 10 ants, rank, γ = 1,
 m = 1; n >= 4: 15 ants, roulette, γ = 0.5, m = 2), tol = 1e-4 and at most
 10,000 evaluations, and prints success rate and mean evaluations next to the
@@ -18,7 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from aes_ros.tcacs import BENCHMARKS, default_options, minimize
+from aes_ros.optim.benchmarks import BENCHMARKS
+from aes_ros.optim.tcacs import default_options, minimize
 
 
 def run(runs: int, max_evals: int) -> list[dict]:

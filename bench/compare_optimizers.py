@@ -2,10 +2,10 @@
 
 Same problem for all: J (E10) of the paper's combined setup (100 robots, 30 s,
 Δt = 0.05 s), weights (1/N, −1), 10 Monte-Carlo runs per candidate, the
-default box of ``aes-swarm optimize`` (:data:`aes_ros.study.DEFAULT_BOUNDS`),
+default box of ``aes-swarm optimize`` (:data:`aes_ros.optim.tuning.DEFAULT_BOUNDS`),
 and the same budget of 300 evaluations, always asked for in batches of 15
 (one simulator call per batch). Seed s of every optimiser uses the same
-Monte-Carlo seed set (:func:`aes_ros.study.mc_seeds`), so within a seed the
+Monte-Carlo seed set (:func:`aes_ros.optim.tuning.mc_seeds`), so within a seed the
 optimisers face exactly the same function.
 
 * TCACS: the paper's options (15 ants, roulette, γ = 0.5, m = 2).
@@ -43,8 +43,9 @@ import matplotlib.pyplot as plt
 import numpy as np
 from scipy.optimize import differential_evolution
 
-from aes_ros import scenario, study, tcacs
-from aes_ros.cost import MonteCarloCost
+from aes_ros import scenario
+from aes_ros.optim import study, tcacs, tuning
+from aes_ros.optim.cost import MonteCarloCost
 
 BUDGET = 300
 BATCH = 15
@@ -147,18 +148,18 @@ def main() -> None:
     args = parser.parse_args()
     if args.from_json:
         records = json.loads((args.out / "optimizers.json").read_text())
-        table = markdown(records, tuple(study.DEFAULT_BOUNDS), args)
+        table = markdown(records, tuple(tuning.DEFAULT_BOUNDS), args)
         (args.out / "optimizers.md").write_text(table)
         print(table)
         return
     sc = scenario.load("combined")
-    names = tuple(study.DEFAULT_BOUNDS)
-    lo, hi = np.array([study.DEFAULT_BOUNDS[n] for n in names]).T
-    study.warm_up(sc)
+    names = tuple(tuning.DEFAULT_BOUNDS)
+    lo, hi = np.array([tuning.DEFAULT_BOUNDS[n] for n in names]).T
+    tuning.warm_up(sc)
     records: dict[str, list[dict]] = {name: [] for name in args.only}
     for seed in range(args.seeds):
         for name in args.only:
-            cost = MonteCarloCost(sc, seeds=study.mc_seeds(seed, args.mc), names=names)
+            cost = MonteCarloCost(sc, seeds=tuning.mc_seeds(seed, args.mc), names=names)
             f = Budget(cost)
             start = time.perf_counter()
             OPTIMIZERS[name](f, lo, hi, seed)

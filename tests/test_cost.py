@@ -7,6 +7,7 @@ Small swarms and short runs keep this quick; the paper-scale run is a benchmark
 from __future__ import annotations
 
 import csv
+import inspect
 import json
 import warnings
 from pathlib import Path
@@ -14,10 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aes_ros import cost as cost_module
-from aes_ros import scenario, simulator, study
-from aes_ros.cli import main
-from aes_ros.cost import MonteCarloCost, NonFiniteCostWarning
+from aes_ros import metrics, scenario, simulator
+from aes_ros.cli import build_parser, main
+from aes_ros.optim import cost as cost_module
+from aes_ros.optim import tcacs, tuning
+from aes_ros.optim.cost import MonteCarloCost, NonFiniteCostWarning
 from aes_ros.params import ParameterError
 
 PAPER = [0.066, 0.97, 1.28]
@@ -112,7 +114,7 @@ def test_bad_input_names_the_argument(small: scenario.Scenario) -> None:
 
 def test_tune_improves_on_its_seeds_and_respects_the_box(small: scenario.Scenario) -> None:
     bounds = {"alpha": (0.001, 0.5), "beta": (0.01, 5.0)}  # k stays at the scenario's 1.28
-    out = study.tune(small, bounds=bounds, evals=60, mc=2, seed=1)
+    out = tuning.tune(small, bounds=bounds, evals=60, mc=2, seed=1)
     res = out.result
     assert res.nfev == 60 and res.x.shape == (2,)
     assert res.fun < np.min(res.history_fun[:15])  # better than the first iteration's best
@@ -121,8 +123,8 @@ def test_tune_improves_on_its_seeds_and_respects_the_box(small: scenario.Scenari
 
 
 def test_parse_bounds() -> None:
-    b = study.parse_bounds("alpha=0.01:0.2, k=1:3")
-    assert b == {"alpha": (0.01, 0.2), "beta": study.DEFAULT_BOUNDS["beta"], "k": (1.0, 3.0)}
+    b = tuning.parse_bounds("alpha=0.01:0.2, k=1:3")
+    assert b == {"alpha": (0.01, 0.2), "beta": tuning.DEFAULT_BOUNDS["beta"], "k": (1.0, 3.0)}
     for text, field in [
         ("alpha=0.2:0.01", "alpha"),
         ("alpha=0.1:0.1", "alpha"),
@@ -132,14 +134,14 @@ def test_parse_bounds() -> None:
         ("k=-1:2", "k"),
     ]:
         with pytest.raises(ParameterError, match=f"--bounds: .*{field}"):
-            study.parse_bounds(text)
+            tuning.parse_bounds(text)
 
 
 def test_spring_strain(small: scenario.Scenario) -> None:
     nominal, neighbors, rest = small.sheet()
-    assert study.spring_strain(nominal, neighbors, rest) == pytest.approx(0.0, abs=1e-12)
+    assert metrics.spring_strain(nominal, neighbors, rest) == pytest.approx(0.0, abs=1e-12)
     stretched = np.stack([nominal * 1.1, nominal * 0.5])
-    assert study.spring_strain(stretched, neighbors, rest) == pytest.approx([0.1, 0.5])
+    assert metrics.spring_strain(stretched, neighbors, rest) == pytest.approx([0.1, 0.5])
 
 
 SMALL_ARGS = ["--set", "rows=3", "--set", "cols=3", "--set", "duration=2"]
@@ -170,9 +172,13 @@ def test_optimize_command_writes_its_outputs(tmp_path: Path, capsys) -> None:
         (["--bounds", "alpha=0.5:0.1"], "--bounds"),
         (["--bounds", "k=:"], "--bounds"),
         (["--evals", "10"], "--evals"),
+        (["--evals", "0"], "--evals"),
         (["--mc", "0"], "--mc"),
+        (["--ants", "1"], "--ants"),
+        (["--ants", "20", "--evals", "19"], "--evals"),
         (["--weighting", "wheel"], "--weighting"),
-        (["--gamma", "2"], "gamma"),
+        (["--gamma", "2"], "--gamma"),
+        (["--m", "-1"], "--m"),
         (["--setup", "nowhere"], "--setup"),
     ],
 )
@@ -182,6 +188,37 @@ def test_optimize_bad_input_exits_2_naming_the_field(
     rc = main(["optimize", *SMALL_ARGS, "--no-progress", *args, "--out", str(tmp_path)])
     assert rc == 2
     assert field in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["--evals", "10"], "--evals"),  # fewer than one iteration of the paper's 15 ants
+        (["--evals", "0"], "--evals"),
+        (["--mc", "0"], "--mc"),
+        (["--restarts", "0"], "--restarts"),
+        (["--eval-runs", "0"], "--eval-runs"),
+    ],
+)
+def test_study_bad_input_exits_2_naming_the_field(
+    tmp_path: Path, capsys, args: list[str], field: str
+) -> None:
+    out = tmp_path / "study"
+    rc = main(["study", *SMALL_ARGS, "--no-progress", *args, "--out", str(out)])
+    assert rc == 2
+    assert capsys.readouterr().err.startswith(f"aes-swarm study: error: {field}:")
+    assert not out.exists()
+
+
+def test_paper_options_are_the_defaults_of_tune_and_the_cli() -> None:
+    paper = dict(tcacs.PAPER_OPTIONS)
+    params = inspect.signature(tuning.tune).parameters
+    assert {k: params[k].default for k in paper} == paper
+    assert params["evals"].default == tcacs.DEFAULT_MAX_EVALS
+    args = build_parser().parse_args(["optimize", "--out", "x"])
+    assert (args.ants, args.weighting, args.gamma, args.m) == tuple(paper.values())
+    assert args.evals == tcacs.DEFAULT_MAX_EVALS
+    assert build_parser().parse_args(["study", "--out", "x"]).evals == tcacs.DEFAULT_MAX_EVALS
 
 
 def test_study_command_smoke(tmp_path: Path, capsys) -> None:

@@ -9,14 +9,23 @@ errors at 25 runs); a broken spread, frame or tabu rule moves these by far more.
 
 from __future__ import annotations
 
+import inspect
 import itertools
 import math
 
 import numpy as np
 import pytest
 
-from aes_ros import tcacs
-from aes_ros.tcacs import BENCHMARKS, TCACSSolver, default_options, minimize, spread_weights
+from aes_ros.optim import tcacs
+from aes_ros.optim.benchmarks import BENCHMARKS
+from aes_ros.optim.tcacs import (
+    PAPER_OPTIONS,
+    TCACSSolver,
+    check_options,
+    default_options,
+    minimize,
+    spread_weights,
+)
 
 REFERENCE = [name for name, b in BENCHMARKS.items() if b.ref_success is not None]
 
@@ -264,3 +273,50 @@ def test_bad_input_names_the_argument(kwargs: dict, field: str) -> None:
 def test_f_with_the_wrong_shape_is_reported() -> None:
     with pytest.raises(ValueError, match=r"^f:"):
         minimize(lambda X: np.zeros((len(X), 2)), [(0, 1), (0, 1)])
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"n_ants": 1}, "n_ants"),
+        ({"n_ants": 2.5}, "n_ants"),
+        ({"n_ants": True}, "n_ants"),
+        ({"max_evals": 300.0}, "max_evals"),
+        ({"max_evals": 14}, "max_evals"),
+        ({"n_ants": 40, "max_evals": 39}, "max_evals"),
+        ({"weighting": "wheel"}, "weighting"),
+        ({"gamma": -0.1}, "gamma"),
+        ({"gamma": math.nan}, "gamma"),
+        ({"m": -1}, "m"),
+        ({"m": math.inf}, "m"),
+        ({"tol": -1e-9}, "tol"),
+        ({"tol": math.nan}, "tol"),
+    ],
+)
+def test_check_options_names_the_bad_option_and_minimize_uses_it(kwargs: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=rf"^{field}:"):
+        check_options(**kwargs)
+    with pytest.raises(ValueError, match=rf"^{field}:"):
+        minimize(_sphere, [(0, 1), (0, 1)], **kwargs)
+
+
+def test_check_options_accepts_the_defaults_and_names_options_by_their_labels() -> None:
+    check_options()
+    check_options(**PAPER_OPTIONS, max_evals=15, tol=0.0)
+    for n in (2, 3, 4, 6):
+        check_options(**default_options(n))
+    labels = {"n_ants": "--ants", "max_evals": "--evals"}
+    with pytest.raises(ValueError, match=r"^--ants: 1 is not allowed"):
+        check_options(n_ants=1, labels=labels)
+    with pytest.raises(ValueError, match=r"^--evals: 10 is less than --ants \(15\)"):
+        check_options(max_evals=10, labels=labels)
+    with pytest.raises(ValueError, match=r"^gamma:"):  # options without a label keep their name
+        check_options(gamma=2.0, labels=labels)
+
+
+def test_paper_options_are_the_defaults_of_minimize_and_the_solver() -> None:
+    assert dict(PAPER_OPTIONS) == {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+    assert default_options(4) == dict(PAPER_OPTIONS)
+    for func in (minimize, TCACSSolver, check_options):
+        params = inspect.signature(func).parameters
+        assert {k: params[k].default for k in PAPER_OPTIONS} == dict(PAPER_OPTIONS), func

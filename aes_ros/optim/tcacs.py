@@ -9,21 +9,32 @@ to ``(k,)`` costs, so the swarm simulator can run all ants (× all Monte-Carlo
 runs) in one kernel call.
 
 Public interface: :func:`minimize` (thin function) over :class:`TCACSSolver`
-(the state machine), plus the weight rule :func:`spread_weights` and a few
-standard test functions in :data:`BENCHMARKS` used by the validation bench
-and the tests.
+(the state machine), the option check :func:`check_options` both share with
+the command line, the paper's options :data:`PAPER_OPTIONS`, and the steps
+:func:`spread_weights` and :func:`fit_frame`. The standard test functions it
+is validated on are in :mod:`aes_ros.optim.benchmarks`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from types import MappingProxyType
+from typing import Any
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
 WEIGHTINGS = ("roulette", "rank")
+#: The paper's options (SPEC §3.2), the defaults of :func:`minimize`, of the
+#: tuning and of ``aes-swarm optimize``; also the reference's defaults for n >= 4.
+PAPER_OPTIONS: Mapping[str, Any] = MappingProxyType(
+    {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+)
+#: The paper's budget of cost evaluations (SPEC §3.2).
+DEFAULT_MAX_EVALS = 300
+#: Default spatial convergence radius of the stop rule (SPEC §6 step 7).
+DEFAULT_TOL = 1e-4
 
 #: Seeding: retries per seed point before the last draw is accepted anyway (the
 #: reference implementation has no cap and can hang).
@@ -40,12 +51,12 @@ def minimize(
     f: Callable[[np.ndarray], np.ndarray],
     bounds: Sequence[tuple[float, float]],
     *,
-    n_ants: int = 15,
-    weighting: str = "roulette",
-    gamma: float = 0.5,
-    m: float = 2,
-    max_evals: int = 300,
-    tol: float = 1e-4,
+    n_ants: int = PAPER_OPTIONS["n_ants"],
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
+    m: float = PAPER_OPTIONS["m"],
+    max_evals: int = DEFAULT_MAX_EVALS,
+    tol: float = DEFAULT_TOL,
     seed: int | np.random.Generator | None = None,
     callback: Callable[[OptimizeResult], bool | None] | None = None,
 ) -> OptimizeResult:
@@ -67,10 +78,12 @@ def minimize(
         Share of the cost term in the weights (the rest is the distance term).
     m : float >= 0
         The "PCA factor": axes are picked with probability ∝ ‖c‖^(2m).
+        ``n_ants``, ``weighting``, ``gamma`` and ``m`` default to the paper's
+        :data:`PAPER_OPTIONS` (15 ants, roulette, γ = 0.5, m = 2).
     max_evals : int >= n_ants
-        Budget; the run has round(max_evals / n_ants) iterations, so ``nfev``
-        can exceed ``max_evals`` by up to n_ants / 2 (1000 evaluations with 15
-        ants gives 67 iterations, 1005 evaluations).
+        Budget (default the paper's 300); the run has round(max_evals / n_ants)
+        iterations, so ``nfev`` can exceed ``max_evals`` by up to n_ants / 2
+        (1000 evaluations with 15 ants gives 67 iterations, 1005 evaluations).
     tol : float >= 0
         Spatial convergence radius: stop as soon as every promising point lies
         within ``tol`` of the best point.
@@ -94,9 +107,8 @@ def minimize(
     ------
     ValueError
         Naming the argument: bad bounds (empty, n = 1, reversed or not
-        finite), ``max_evals < n_ants``, unknown ``weighting``, ``gamma``
-        outside [0, 1], negative ``m`` or ``tol``, ``n_ants < 2``, or ``f``
-        returning the wrong shape.
+        finite), a bad option (see :func:`check_options`), or ``f`` returning
+        the wrong shape.
 
     Notes
     -----
@@ -142,7 +154,7 @@ def minimize(
     Examples
     --------
     >>> import numpy as np
-    >>> from aes_ros.tcacs import minimize
+    >>> from aes_ros.optim.tcacs import minimize
     >>> res = minimize(lambda X: np.sum(X**2, axis=1), [(-5, 5), (-5, 5)],
     ...                n_ants=10, weighting="rank", gamma=1.0, m=1,
     ...                max_evals=2000, seed=1)
@@ -164,23 +176,74 @@ def minimize(
     return solver.solve()
 
 
+def check_options(
+    *,
+    n_ants: int = PAPER_OPTIONS["n_ants"],
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
+    m: float = PAPER_OPTIONS["m"],
+    max_evals: int = DEFAULT_MAX_EVALS,
+    tol: float = DEFAULT_TOL,
+    labels: Mapping[str, str] | None = None,
+) -> None:
+    """Check the options of :func:`minimize`; raise ValueError naming the first bad one.
+
+    Options left out take :func:`minimize`'s defaults. ``labels`` renames
+    options in the messages, e.g. ``{"n_ants": "--ants"}`` for a command line;
+    by default an option is called by its parameter name.
+
+    Raises
+    ------
+    ValueError
+        ``"<name>: …"`` when ``n_ants`` is not an integer >= 2, ``max_evals``
+        is not an integer or is less than ``n_ants``, ``weighting`` is not one
+        of :data:`WEIGHTINGS`, ``gamma`` is outside [0, 1], or ``m`` or ``tol``
+        is negative or not finite.
+    """
+    name = {o: o for o in ("n_ants", "weighting", "gamma", "m", "max_evals", "tol")}
+    name.update(labels or {})
+    if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
+        raise ValueError(f"{name['n_ants']}: {n_ants!r} is not allowed; need an integer >= 2")
+    if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
+        raise ValueError(f"{name['max_evals']}: {max_evals!r} is not allowed; need an integer")
+    if max_evals < n_ants:
+        raise ValueError(
+            f"{name['max_evals']}: {max_evals} is less than {name['n_ants']} ({n_ants}); "
+            "need at least one iteration of ants"
+        )
+    if weighting not in WEIGHTINGS:
+        raise ValueError(
+            f"{name['weighting']}: {weighting!r} is not allowed; use one of {WEIGHTINGS}"
+        )
+    if not 0.0 <= gamma <= 1.0:
+        raise ValueError(f"{name['gamma']}: {gamma!r} is not allowed; need a number in [0, 1]")
+    if not (m >= 0 and math.isfinite(m)):
+        raise ValueError(f"{name['m']}: {m!r} is not allowed; need a finite number >= 0")
+    if not (tol >= 0 and math.isfinite(tol)):
+        raise ValueError(f"{name['tol']}: {tol!r} is not allowed; need a finite number >= 0")
+
+
 def n_iterations(max_evals: int, n_ants: int) -> int:
     """Iterations of a run: round(max_evals / n_ants), halves rounded up like the reference."""
     return max(1, math.floor(max_evals / n_ants + 0.5))
 
 
-def default_options(n: int) -> dict:
+def default_options(n: int) -> dict[str, Any]:
     """The reference's default options for dimension n (SPEC §6 validation table).
 
-    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: 15 ants, roulette, γ = 0.5, m = 2.
+    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: :data:`PAPER_OPTIONS`
+    (15 ants, roulette, γ = 0.5, m = 2).
     """
     if n < 4:
         return {"n_ants": 10, "weighting": "rank", "gamma": 1.0, "m": 1}
-    return {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+    return dict(PAPER_OPTIONS)
 
 
 def spread_weights(
-    costs: np.ndarray, distances: np.ndarray, weighting: str = "roulette", gamma: float = 0.5
+    costs: np.ndarray,
+    distances: np.ndarray,
+    weighting: str = PAPER_OPTIONS["weighting"],
+    gamma: float = PAPER_OPTIONS["gamma"],
 ) -> np.ndarray:
     """Weights W_k of the P−1 promising points other than x* (SPEC §6 step 6).
 
@@ -290,34 +353,20 @@ class TCACSSolver:
         f: Callable[[np.ndarray], np.ndarray],
         bounds: Sequence[tuple[float, float]],
         *,
-        n_ants: int = 15,
-        weighting: str = "roulette",
-        gamma: float = 0.5,
-        m: float = 2,
-        max_evals: int = 300,
-        tol: float = 1e-4,
+        n_ants: int = PAPER_OPTIONS["n_ants"],
+        weighting: str = PAPER_OPTIONS["weighting"],
+        gamma: float = PAPER_OPTIONS["gamma"],
+        m: float = PAPER_OPTIONS["m"],
+        max_evals: int = DEFAULT_MAX_EVALS,
+        tol: float = DEFAULT_TOL,
         seed: int | np.random.Generator | None = None,
         callback: Callable[[OptimizeResult], bool | None] | None = None,
     ) -> None:
         self.lower, self.upper = _check_bounds(bounds)
         self.n = len(self.lower)
-        if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
-            raise ValueError(f"n_ants: {n_ants!r} is not allowed; need an integer >= 2")
-        if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
-            raise ValueError(f"max_evals: {max_evals!r} is not allowed; need an integer")
-        if max_evals < n_ants:
-            raise ValueError(
-                f"max_evals: {max_evals} is less than n_ants ({n_ants}); "
-                "need at least one iteration of ants"
-            )
-        if weighting not in WEIGHTINGS:
-            raise ValueError(f"weighting: {weighting!r} is not allowed; use one of {WEIGHTINGS}")
-        if not 0.0 <= gamma <= 1.0:
-            raise ValueError(f"gamma: {gamma!r} is not allowed; need a number in [0, 1]")
-        if not (m >= 0 and math.isfinite(m)):
-            raise ValueError(f"m: {m!r} is not allowed; need a finite number >= 0")
-        if not (tol >= 0 and math.isfinite(tol)):
-            raise ValueError(f"tol: {tol!r} is not allowed; need a finite number >= 0")
+        check_options(
+            n_ants=n_ants, weighting=weighting, gamma=gamma, m=m, max_evals=max_evals, tol=tol
+        )
         self.f, self.callback = f, callback
         self.n_ants, self.weighting = int(n_ants), weighting
         self.gamma, self.m, self.tol = float(gamma), float(m), float(tol)
@@ -521,110 +570,3 @@ def _check_bounds(bounds: Sequence[tuple[float, float]]) -> tuple[np.ndarray, np
             f"bounds: variable {i} has low {b[i, 0]:g} >= high {b[i, 1]:g} (reversed or empty)"
         )
     return b[:, 0].copy(), b[:, 1].copy()
-
-
-# --- standard test functions (vectorised: X (k, n) -> (k,)) ------------------
-
-
-def branin(X: np.ndarray) -> np.ndarray:
-    """Branin RCOS on [−5, 10] × [0, 15]; f* = 5/(4π) ≈ 0.397887 (three minima)."""
-    x, y = X[:, 0], X[:, 1]
-    b, c = 5.1 / (4 * np.pi**2), 5 / np.pi
-    return (y - b * x**2 + c * x - 6) ** 2 + 10 * (1 - 1 / (8 * np.pi)) * np.cos(x) + 10
-
-
-def goldstein_price(X: np.ndarray) -> np.ndarray:
-    """Goldstein–Price on [−2, 2]²; f* = 3 at (0, −1)."""
-    x, y = X[:, 0], X[:, 1]
-    a = 1 + (x + y + 1) ** 2 * (19 - 14 * x + 3 * x**2 - 14 * y + 6 * x * y + 3 * y**2)
-    b = 30 + (2 * x - 3 * y) ** 2 * (18 - 32 * x + 12 * x**2 + 48 * y - 36 * x * y + 27 * y**2)
-    return a * b
-
-
-def rosenbrock(X: np.ndarray) -> np.ndarray:
-    """Rosenbrock; f* = 0 at (1, …, 1)."""
-    return np.sum(100 * (X[:, 1:] - X[:, :-1] ** 2) ** 2 + (1 - X[:, :-1]) ** 2, axis=1)
-
-
-def sphere(X: np.ndarray) -> np.ndarray:
-    """De Jong's sphere; f* = 0 at the origin."""
-    return np.sum(X**2, axis=1)
-
-
-_H3_A = np.array([[3.0, 10, 30], [0.1, 10, 35], [3.0, 10, 30], [0.1, 10, 35]])
-_H3_P = 1e-4 * np.array(
-    [[3689, 1170, 2673], [4699, 4387, 7470], [1091, 8732, 5547], [381, 5743, 8828]]
-)
-_H6_A = np.array(
-    [
-        [10, 3, 17, 3.5, 1.7, 8],
-        [0.05, 10, 17, 0.1, 8, 14],
-        [3, 3.5, 1.7, 10, 17, 8],
-        [17, 8, 0.05, 10, 0.1, 14],
-    ]
-)
-_H6_P = 1e-4 * np.array(
-    [
-        [1312, 1696, 5569, 124, 8283, 5886],
-        [2329, 4135, 8307, 3736, 1004, 9991],
-        [2348, 1451, 3522, 2883, 3047, 6650],
-        [4047, 8828, 8732, 5743, 1091, 381],
-    ]
-)
-_HC = np.array([1.0, 1.2, 3.0, 3.2])
-
-
-def _hartmann(X: np.ndarray, A: np.ndarray, P: np.ndarray) -> np.ndarray:
-    inner = np.sum(A[None] * (X[:, None, :] - P[None]) ** 2, axis=2)
-    return -np.sum(_HC * np.exp(-inner), axis=1)
-
-
-def hartmann3(X: np.ndarray) -> np.ndarray:
-    """Hartmann H3,4 on [0, 1]³; f* ≈ −3.86278."""
-    return _hartmann(X, _H3_A, _H3_P)
-
-
-def hartmann6(X: np.ndarray) -> np.ndarray:
-    """Hartmann H6,4 on [0, 1]⁶; f* ≈ −3.32237."""
-    return _hartmann(X, _H6_A, _H6_P)
-
-
-_SHEKEL_A = np.array([[4.0, 4, 4, 4], [1, 1, 1, 1], [8, 8, 8, 8], [6, 6, 6, 6], [3, 7, 3, 7]])
-_SHEKEL_C = np.array([0.1, 0.2, 0.2, 0.4, 0.4])
-
-
-def shekel5(X: np.ndarray) -> np.ndarray:
-    """Shekel S4,5 on [0, 10]⁴; f* ≈ −10.1532 at (4, 4, 4, 4)."""
-    sq = np.sum((X[:, None, :] - _SHEKEL_A[None]) ** 2, axis=2)
-    return -np.sum(1.0 / (sq + _SHEKEL_C), axis=1)
-
-
-@dataclass(frozen=True)
-class Benchmark:
-    """A test function with its box, optimum and the reference behaviour (SPEC §6)."""
-
-    name: str
-    f: Callable[[np.ndarray], np.ndarray]
-    bounds: tuple[tuple[float, float], ...]
-    f_star: float
-    ref_success: float | None = None  #: success rate of the authors' code, or None
-    ref_evals: float | None = None  #: its mean evaluations, or None
-
-    def success(self, fun: float) -> bool:
-        """|f − f*| < 1e-4·|f*| + 1e-6 (the reference's success criterion)."""
-        return abs(fun - self.f_star) < 1e-4 * abs(self.f_star) + 1e-6
-
-
-BENCHMARKS: dict[str, Benchmark] = {
-    b.name: b
-    for b in [
-        Benchmark("branin", branin, ((-5, 10), (0, 15)), 5 / (4 * np.pi), 1.00, 420),
-        Benchmark("goldstein_price", goldstein_price, ((-2, 2), (-2, 2)), 3.0, 0.97, 260),
-        Benchmark("rosenbrock2", rosenbrock, ((-5, 10), (-5, 10)), 0.0, 1.00, 670),
-        Benchmark("sphere3", sphere, ((-5.12, 5.12),) * 3, 0.0, 1.00, 390),
-        Benchmark("hartmann3", hartmann3, ((0, 1),) * 3, -3.862782147820756, 0.99, 550),
-        # Beyond the reference table: the n >= 4 defaults (15 ants, roulette, m = 2).
-        Benchmark("shekel5", shekel5, ((0, 10),) * 4, -10.1531996790582),
-        Benchmark("hartmann6", hartmann6, ((0, 1),) * 6, -3.322368011391339),
-    ]
-}

@@ -30,7 +30,7 @@ from aes_ros.scenario import Scenario
 from aes_ros.simulator import SimResult, simulate
 
 #: The decision variables of the paper's tuning (SPEC §3.2), in this order.
-GAIN_NAMES = ("alpha", "beta", "k")
+TUNED_GAINS = ("alpha", "beta", "k")
 
 
 class NonFiniteCostWarning(RuntimeWarning):
@@ -84,7 +84,7 @@ class MonteCarloCost:
         w2: float = -1.0,
         seeds: Sequence[int] | None = None,
         seed: int = 0,
-        names: Sequence[str] = GAIN_NAMES,
+        names: Sequence[str] = TUNED_GAINS,
     ) -> None:
         n_robots = len(scenario.nominal_positions())
         if seeds is None:

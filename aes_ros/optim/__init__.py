@@ -1,0 +1,11 @@
+"""Tuning the gains: the optimiser, its cost and the paper's study (SPEC §3, §6).
+
+One job per module:
+
+* :mod:`~aes_ros.optim.tcacs` — the TCACS minimiser (SPEC §6);
+* :mod:`~aes_ros.optim.benchmarks` — standard test functions TCACS is validated on;
+* :mod:`~aes_ros.optim.cost` — the Monte-Carlo tuning cost J (E10);
+* :mod:`~aes_ros.optim.tuning` — one tuning run (``aes-swarm optimize``) and its outputs;
+* :mod:`~aes_ros.optim.study` — the paper's tuning study (``aes-swarm study``);
+* :mod:`~aes_ros.optim.figures` — the figures of both, from arrays to PNG.
+"""
