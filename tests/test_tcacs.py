@@ -18,13 +18,13 @@ import pytest
 
 from aes_ros.optim import tcacs
 from aes_ros.optim.benchmarks import BENCHMARKS
+from aes_ros.optim.frame import fit_frame, spread_weights
 from aes_ros.optim.tcacs import (
     PAPER_OPTIONS,
     TCACSSolver,
     check_options,
     default_options,
     minimize,
-    spread_weights,
 )
 
 REFERENCE = [name for name, b in BENCHMARKS.items() if b.ref_success is not None]
@@ -228,16 +228,16 @@ def test_lists_promising_best_tabu_worst_within_three_sigma() -> None:
 def test_frame_is_orthonormal_and_follows_the_promising_points() -> None:
     rng = np.random.default_rng(0)
     for n in (2, 3, 5):
-        R = tcacs.fit_frame(rng.normal(size=(10, n)), 2, rng)
+        R = fit_frame(rng.normal(size=(10, n)), 2, rng)
         assert R @ R.T == pytest.approx(np.eye(n), abs=1e-12)
         assert R[-1].sum() > 0
     # points spread along (1, 1): the first axis is that direction (m large: the farthest)
     t = np.linspace(-1, 1, 9)
     pts = np.stack([t, t], axis=1) + 1e-3 * rng.normal(size=(9, 2))
-    R = tcacs.fit_frame(pts, 8, rng)
+    R = fit_frame(pts, 8, rng)
     assert abs(R[0] @ np.array([1, 1]) / np.sqrt(2)) == pytest.approx(1, abs=1e-3)
     # identical points: still an orthonormal frame
-    R = tcacs.fit_frame(np.ones((5, 3)), 2, rng)
+    R = fit_frame(np.ones((5, 3)), 2, rng)
     assert R @ R.T == pytest.approx(np.eye(3), abs=1e-12)
 
 

@@ -3,6 +3,7 @@
 One job per module:
 
 * :mod:`~aes_ros.optim.tcacs` — the TCACS minimiser (SPEC §6);
+* :mod:`~aes_ros.optim.frame` — its rotated sampling frame and spread weights (steps 5–6);
 * :mod:`~aes_ros.optim.benchmarks` — standard test functions TCACS is validated on;
 * :mod:`~aes_ros.optim.cost` — the Monte-Carlo tuning cost J (E10);
 * :mod:`~aes_ros.optim.tuning` — one tuning run (``aes-swarm optimize``) and its outputs;
