@@ -206,7 +206,8 @@ def test_study_bad_input_exits_2_naming_the_field(
     out = tmp_path / "study"
     rc = main(["study", *SMALL_ARGS, "--no-progress", *args, "--out", str(out)])
     assert rc == 2
-    assert capsys.readouterr().err.startswith(f"aes-swarm study: error: {field}:")
+    err = capsys.readouterr().err
+    assert f"error: {field}:" in err or f"error: argument {field}:" in err, err
     assert not out.exists()
 
 

@@ -1,10 +1,10 @@
 """``aes-swarm``: the user's front door (SPEC §7 "Starting it").
 
-Each subcommand lives in its own module of this package and exposes
-``register(subparsers)``, which adds its parser and sets ``func`` to a
-function ``(args) -> int``. Bad input (a ParameterError or ValueError from
-validation) exits with code 2 and a one-line message naming the field; no
-traceback.
+Every subcommand is registered in :data:`COMMANDS` below; its module of this
+package has ``add_arguments(parser)`` and ``run(args) -> int``, and the first
+paragraph of the module docstring is the command's ``--help`` description. Bad
+input (a ParameterError or ValueError from validation) exits with code 2 and a
+one-line message naming the field; no traceback.
 """
 
 from __future__ import annotations
@@ -15,8 +15,38 @@ import sys
 
 from aes_ros.params import ParameterError
 
-#: Subcommand modules, in the order ``--help`` lists them.
-SUBCOMMANDS = ("simulate", "params", "optimize", "launch")
+#: Every subcommand, in the order ``--help`` lists them: name -> one-line help.
+#: The module ``aes_ros.cli.<name>`` implements it.
+COMMANDS: dict[str, str] = {
+    "simulate": "run a scenario in the fast offline simulator and write plots and metrics",
+    "params": "list the scenario parameters (name, default, range)",
+    "optimize": "tune alpha, beta, k with TCACS on the Monte-Carlo cost J (E10)",
+    "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
+    "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
+    "steer": "steer the running swarm: publish one /swarm/cmd",
+}
+
+#: Longer descriptions shown by ``aes-swarm <command> --help``.
+DESCRIPTIONS: dict[str, str] = {
+    "simulate": "Run a scenario offline (batched numpy/numba simulator, SPEC §1.4) and "
+    "write trajectory.npz, metrics.csv, snapshots.png and metrics.png to --out.",
+    "optimize": "Tune the gains with TCACS (SPEC §6) on J (E10): every candidate is "
+    "simulated with the same --mc seeds (common random numbers), all ants x all runs "
+    "of an iteration in one batch. Writes result.json, history.csv and convergence.png "
+    "to --out.",
+    "study": "Reproduce the paper's study: TCACS with the weights (1/N,-1), (10/N,-1), "
+    "(1/N,-10) (and k free down to 0), restarted with independent seeds, then every gain "
+    "set re-simulated on held-out seeds. Writes effect_of_optimisation.png, "
+    "convergence.png, j_slices.png, table.csv, runs.csv, study.json and study.md.",
+    "launch": "Start aes-sim-bridge, aes-supervisor and the robot nodes as separate "
+    "processes, wait until every robot moves, run for --duration seconds of sim time "
+    "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
+    "snapshots.png and metrics.png to --out.",
+    "steer": "Publish one geometry_msgs/Twist on /swarm/cmd (linear.x/y = desired "
+    "direction, angular.z = rotation rate ω, counter-clockwise positive) and wait until "
+    "the supervisor echoes it on /swarm/desired_velocity. A value not given keeps the "
+    "supervisor's current one.",
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,20 +55,21 @@ def build_parser() -> argparse.ArgumentParser:
         description="Active Elastic Sheet swarms: offline simulation, tuning and the ROS 2 system.",
     )
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for name in SUBCOMMANDS:
-        try:
-            module = importlib.import_module(f"aes_ros.cli.{name}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"aes_ros.cli.{name}":
-                raise
-            continue
-        module.register(sub)
+    for name, help_text in COMMANDS.items():
+        module = importlib.import_module(f"aes_ros.cli.{name}")
+        p = sub.add_parser(name, help=help_text, description=DESCRIPTIONS.get(name, help_text))
+        module.add_arguments(p)
+        p.set_defaults(func=module.run)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run ``aes-swarm`` with ``argv``; returns the exit code (2: bad input)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, or argparse's own message naming the option
+        return int(exc.code or 0)
     try:
         return int(args.func(args) or 0)
     except ParameterError as exc:

@@ -1,12 +1,10 @@
-"""``aes-swarm launch`` (the whole ROS system) and ``aes-swarm steer`` (runtime steering).
+"""``aes-swarm launch``: the whole ROS system (bridge, supervisor, robot nodes).
 
 Examples::
 
     aes-swarm launch --setup combined --robots 100 --duration 30 --out out/ros \
         --record out/ros/run.mcap
     aes-swarm launch --setup linear --robots 16 --lockstep --real-time-factor 0 --out out/lin
-    aes-swarm steer --direction 0 1            # drive north, keep the rotation rate
-    aes-swarm steer --omega 0.5                # turn counter-clockwise, keep the direction
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
@@ -20,24 +18,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from aes_ros.cli.simulate import add_scenario_options, load_scenario, number_type
-from aes_ros.params import ParameterError
+from aes_ros import scenario
+from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-
-    p = sub.add_parser(
-        "launch",
-        help="run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
-        description="Start aes-sim-bridge, aes-supervisor and the robot nodes as separate "
-        "processes, wait until every robot moves, run for --duration seconds of sim time "
-        "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
-        "snapshots.png and metrics.png to --out.",
-    )
+def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     p.add_argument(
-        "--robots", type=number_type("--robots", int, 1), default=None,
+        "--robots", type=number_type(int, 1), default=None,
         help="number of robots N (a near-square grid; default: the scenario's formation)",
     )  # fmt: skip
     p.add_argument(
@@ -53,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors and collisions",
     )  # fmt: skip
     p.add_argument(
-        "--duration", type=number_type("--duration", float, 0), default=None,
+        "--duration", type=number_type(float, 0), default=None,
         help="sim time [s] to run after every robot moves (default: the scenario's "
         "duration; 0: until Ctrl-C)",
     )  # fmt: skip
@@ -69,46 +58,21 @@ def register(sub: argparse._SubParsersAction) -> None:
         help="each control step waits for every robot's command (deterministic)",
     )  # fmt: skip
     p.add_argument(
-        "--real-time-factor", type=number_type("--real-time-factor", float, 0), default=1.0,
+        "--real-time-factor", type=number_type(float, 0), default=1.0,
         metavar="X", help="sim speed relative to wall time (0: as fast as possible; default 1)",
     )  # fmt: skip
-    p.set_defaults(func=run_launch)
-
-    s = sub.add_parser(
-        "steer",
-        help="steer the running swarm: publish one /swarm/cmd",
-        description="Publish one geometry_msgs/Twist on /swarm/cmd (linear.x/y = desired "
-        "direction, angular.z = rotation rate ω, counter-clockwise positive) and wait until "
-        "the supervisor echoes it on /swarm/desired_velocity. A value not given keeps the "
-        "supervisor's current one.",
-    )
-    s.add_argument(
-        "--direction", nargs=2, type=number_type("--direction"), metavar=("X", "Y"),
-        default=None, help="desired direction v_d in the world frame (0 0 switches the drive off)",
-    )  # fmt: skip
-    s.add_argument(
-        "--omega", type=number_type("--omega"), default=None, metavar="W",
-        help="rotation rate ω [rad/s], counter-clockwise positive",
-    )  # fmt: skip
-    s.add_argument(
-        "--timeout", type=number_type("--timeout", float, 0), default=15.0,
-        help="give up after this many seconds [s] (default 15)",
-    )  # fmt: skip
-    s.set_defaults(func=run_steer)
 
 
-def run_launch(args: argparse.Namespace) -> int:
-    from aes_ros import scenario as scenario_mod
+def run(args: argparse.Namespace) -> int:
     from aes_ros.ros.launch import LaunchConfig, LaunchError, launch
 
     sc = load_scenario(args)
     if args.robots is not None:
         sc = sc.with_robots(args.robots)
-    overrides = scenario_mod.parse_assignments(args.set)
-    label = args.scenario.stem if args.scenario is not None else args.setup
+    overrides = scenario.parse_assignments(args.set)
     config = LaunchConfig(
         scenario=sc,
-        label=f"{label} (ROS)",
+        label=f"{scenario_label(args)} (ROS)",
         layout=args.layout,
         neighbor_source=args.neighbor_source,
         mode=args.mode,
@@ -135,13 +99,3 @@ def run_launch(args: argparse.Namespace) -> int:
     if args.record is not None:
         print(f"bag: {args.record}")
     return 0
-
-
-def run_steer(args: argparse.Namespace) -> int:
-    if args.direction is None and args.omega is None:
-        raise ParameterError("steer: give --direction X Y and/or --omega W")
-    from aes_ros.ros.steering import steer
-
-    ok, message = steer(args.direction, args.omega, timeout=args.timeout)
-    print(message, file=sys.stdout if ok else sys.stderr)
-    return 0 if ok else 1

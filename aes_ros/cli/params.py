@@ -7,9 +7,8 @@ import argparse
 from aes_ros.params import markdown_table
 
 
-def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("params", help="list the scenario parameters (name, default, range)")
-    p.set_defaults(func=run)
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """No options."""
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,0 +1,87 @@
+"""Options and checks shared by the ``aes-swarm`` subcommands.
+
+Every value from the command line is checked here or by the function it is
+passed to; a bad one raises ``argparse.ArgumentTypeError`` or
+:class:`aes_ros.params.ParameterError`, which ``aes-swarm`` turns into exit code 2
+and a one-line message naming the option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from aes_ros import scenario
+from aes_ros.optim import tcacs
+from aes_ros.params import ParameterError
+
+
+def add_scenario_options(p: argparse.ArgumentParser) -> None:
+    """``--setup`` / ``--scenario`` / ``--set``: which scenario, with which overrides."""
+    p.add_argument(
+        "--setup",
+        default="combined",
+        metavar="{" + ",".join(scenario.SETUPS) + "}",
+        help="one of the paper's setups (default: combined)",
+    )
+    p.add_argument(
+        "--scenario",
+        type=Path,
+        default=None,
+        help="a scenario YAML file (copy one from aes_ros/scenarios/); overrides --setup",
+    )
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a parameter (repeatable); see `aes-swarm params`",
+    )
+
+
+def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
+    """The scenario named by --setup/--scenario with --set (and --dt/--duration) applied."""
+    source = args.scenario if args.scenario is not None else args.setup
+    if args.scenario is None and args.setup not in scenario.SETUPS:
+        raise ParameterError(
+            f"--setup: unknown setup {args.setup!r}; allowed: {', '.join(scenario.SETUPS)}"
+        )
+    sc = scenario.load(source, scenario.parse_assignments(args.set))
+    options = {n: v for n in ("dt", "duration") if (v := getattr(args, n, None)) is not None}
+    return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
+
+
+def scenario_label(args: argparse.Namespace) -> str:
+    """The run's name in summaries and titles: the setup, or the scenario file's stem."""
+    return args.scenario.stem if args.scenario is not None else args.setup
+
+
+def number_type(kind: type = float, minimum: float | None = None) -> Callable[[str], int | float]:
+    """An argparse ``type``: a finite number of ``kind`` (int or float), at least
+    ``minimum`` if given; argparse's error names the option, this says what is allowed."""
+    noun = "an integer" if kind is int else "a number"
+
+    def parse(text: str) -> int | float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {noun}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+        if minimum is not None and value < minimum:
+            raise argparse.ArgumentTypeError(f"need {noun} >= {minimum:g}, got {text}")
+        return value
+
+    return parse
+
+
+def check_tcacs_options(labels: Mapping[str, str], **options: Any) -> None:
+    """TCACS's own option check (:func:`aes_ros.optim.tcacs.check_options`), its
+    message naming the option as the command spells it (``labels``)."""
+    try:
+        tcacs.check_options(**options, labels=dict(labels))
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from None

@@ -1,0 +1,72 @@
+"""``aes-swarm study``: the paper's tuning study (untuned vs paper vs TCACS gains).
+
+Example::
+
+    aes-swarm study --out docs/study                       # default vs tuned, weight variants
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from aes_ros.cli.optimize import DEFAULT_MC
+from aes_ros.cli.options import (
+    add_scenario_options,
+    check_tcacs_options,
+    load_scenario,
+    number_type,
+)
+from aes_ros.optim import study, tcacs
+from aes_ros.optim.tuning import PAPER_GAINS
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    add_scenario_options(p)
+    evals = tcacs.DEFAULT_MAX_EVALS
+    p.add_argument("--evals", type=int, default=evals, help=f"evaluations per TCACS run ({evals})")
+    p.add_argument(
+        "--mc",
+        type=number_type(int, 1),
+        default=DEFAULT_MC,
+        help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
+    )
+    p.add_argument(
+        "--restarts",
+        type=number_type(int, 1),
+        default=3,
+        help="TCACS runs per setting (3)",
+    )
+    p.add_argument(
+        "--eval-runs",
+        type=number_type(int, 1),
+        default=50,
+        help="held-out runs per gain set (50)",
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress output")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+
+
+def run(args: argparse.Namespace) -> int:
+    # The study runs TCACS with the paper's options, so only the budget is the user's.
+    check_tcacs_options(
+        {"max_evals": "--evals", "n_ants": "TCACS's ants per iteration"}, max_evals=args.evals
+    )
+    sc = load_scenario(args)
+    result = study.run_study(
+        args.out,
+        sc,
+        evals=args.evals,
+        mc=args.mc,
+        restarts=args.restarts,
+        eval_runs=args.eval_runs,
+        progress=not args.no_progress,
+    )
+    best = result["table"][2]
+    paper = ", ".join(f"{v:g}" for v in PAPER_GAINS.values())
+    print(
+        f"study done in {result['total_time_s']:.0f} s: TCACS (1/N, -1) gives "
+        f"alpha={best['alpha']:.3g}, beta={best['beta']:.3g}, k={best['k']:.3g} "
+        f"(paper: {paper}); outputs in {args.out}"
+    )
+    return 0
