@@ -20,7 +20,6 @@ import math
 import sys
 import time
 
-import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseArray, Twist
 from nav_msgs.msg import Odometry
@@ -38,14 +37,13 @@ from aes_ros.ros.cdr import PoseArrayEncoder
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATEST_COMMAND, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
+from sim_bridge.lockstep import LockstepBarrier
+from sim_bridge.loop_stats import ControlLoopStats
 from sim_bridge.world import World
 
 #: Wall-clock time [s] after which a lockstep bridge still waiting for commands
 #: publishes the same state again (a pose message may have been lost).
 REPUBLISH_AFTER = 1.0
-
-#: At most this many cmd_vel latencies are kept between two /sim/stats calls.
-MAX_LATENCY_SAMPLES = 2_000_000
 
 
 class SimBridgeNode(Node):
@@ -118,12 +116,12 @@ class SimBridgeNode(Node):
         except (ValueError, RuntimeError) as exc:  # a world that cannot be built
             raise ParameterError(str(exc)) from None
         self.paused = False
-        self.fresh = np.zeros(self.n, dtype=bool)  # lockstep: new cmd_vel since last publish
+        self.barrier = LockstepBarrier(self.n)
         self.waiting = False  # lockstep at full speed: step timer parked until all arrived
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_publish = time.monotonic()
         self.publish_wall = self.last_publish  # when the newest state went out [s, monotonic]
-        self._reset_stats()
+        self.stats = ControlLoopStats(self.n, self.last_publish, self.world.step_count, self.dt)
 
         self.clock_pub = self.create_publisher(ClockMsg, names.CLOCK, STREAM_WRITER)
         self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
@@ -283,11 +281,9 @@ class SimBridgeNode(Node):
             self._warn(f"dropped a non-finite cmd_vel: robot {robot_id}")
             return
         self.world.set_command(robot_id, u, turn)
-        self.cmd_counts[robot_id] += 1
-        if len(self.latencies) < MAX_LATENCY_SAMPLES:
-            self.latencies.append(time.monotonic() - self.publish_wall)
-        self.fresh[robot_id] = True
-        if self.waiting and self.fresh.all():
+        self.stats.command(robot_id, time.monotonic() - self.publish_wall)
+        self.barrier.arrived(robot_id)
+        if self.waiting and self.barrier.complete:
             self._restart_stepping()
 
     def _restart_stepping(self) -> None:
@@ -300,13 +296,13 @@ class SimBridgeNode(Node):
         """Timer: one control step of the world, then publish the new state."""
         if self.paused:
             return
-        if self.lockstep and not self.fresh.all():
+        if self.lockstep and not self.barrier.complete:
             if self.real_time_factor == 0.0:
                 # Park the busy timer; on_cmd_vel restarts it when the last command is in.
                 self.step_timer.cancel()
                 self.waiting = True
             return
-        self.fresh[:] = False
+        self.barrier.next_step()
         self.world.step()
         self.publish_state()
 
@@ -320,11 +316,11 @@ class SimBridgeNode(Node):
         """Refresh the odometry listeners; in lockstep, re-publish the state if some
         robot has not answered for a while."""
         self._update_odom_listeners()
-        if not self.lockstep or self.paused or self.fresh.all():
+        if not self.lockstep or self.paused or self.barrier.complete:
             return
         waited = time.monotonic() - self.last_publish
         if waited > REPUBLISH_AFTER:
-            missing = np.flatnonzero(~self.fresh)
+            missing = self.barrier.missing()
             self.get_logger().info(
                 f"lockstep: re-publishing t={self.world.time:g} s; no command yet from "
                 f"{len(missing)} robots (first: {missing[:5].tolist()})",
@@ -335,7 +331,7 @@ class SimBridgeNode(Node):
     def on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """Back to the initial state; every robot stopped; the clock keeps running."""
         self.world.reset()
-        self.fresh[:] = False
+        self.barrier.next_step()
         self.publish_state()
         response.success = True
         response.message = f"reset {self.n} robots to the initial state at t={self.world.time:g} s"
@@ -352,37 +348,12 @@ class SimBridgeNode(Node):
         response.message = "paused" if self.paused else "running"
         return response
 
-    def _reset_stats(self) -> None:
-        self.stats_since = (time.monotonic(), self.world.step_count)
-        self.cmd_counts = np.zeros(self.n, dtype=np.int64)
-        self.latencies: list[float] = []
-
     def on_stats(self, request: Trigger.Request, response: Trigger.Response):
-        """Control-loop figures since the previous call (or the start), as JSON.
-
-        ``wall_s`` and ``sim_s`` elapsed (their ratio is the real-time factor),
-        per-robot ``cmd_vel`` rates [Hz of wall time] (min, median), and the
-        latency [ms] from publishing a state (poses, odometry; stamp = its sim
-        time) to each ``cmd_vel`` arriving here, counted against the newest state
-        published before it arrived (p50, p99, max). Resets the counters.
-        """
-        wall0, step0 = self.stats_since
-        wall = time.monotonic() - wall0
-        rates = self.cmd_counts / wall if wall > 0 else np.zeros(self.n)
-        lat = np.asarray(self.latencies) * 1e3
-        stats = {
-            "robots": self.n,
-            "wall_s": wall,
-            "sim_s": (self.world.step_count - step0) * self.dt,
-            "rate_min_hz": float(rates.min()) if self.n else 0.0,
-            "rate_median_hz": float(np.median(rates)) if self.n else 0.0,
-            "commands": int(self.cmd_counts.sum()),
-            "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
-            "latency_p99_ms": float(np.percentile(lat, 99)) if lat.size else None,
-            "latency_max_ms": float(lat.max()) if lat.size else None,
-        }
-        stats["real_time_factor"] = stats["sim_s"] / wall if wall > 0 else 0.0
-        self._reset_stats()
+        """Control-loop figures since the previous call (or the start), as JSON
+        (:meth:`sim_bridge.loop_stats.ControlLoopStats.snapshot`): the real-time
+        factor, per-robot ``cmd_vel`` rates, and the latency from publishing a state
+        to each ``cmd_vel`` arriving here. Resets the counters."""
+        stats = self.stats.snapshot(time.monotonic(), self.world.step_count)
         response.success = True
         response.message = json.dumps(stats)
         return response
