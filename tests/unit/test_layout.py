@@ -13,7 +13,6 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-
 REPO = Path(__file__).resolve().parents[2]
 ROS_PACKAGES = {
     "rclpy", "rcl_interfaces", "builtin_interfaces", "geometry_msgs", "nav_msgs", "std_msgs",
