@@ -11,19 +11,30 @@ offline simulator and the ROS system report the same things the same way.
 - ``headings`` : (B, T, N) [rad];
 
 with B the number of runs (``simulate --runs B``; 1 for ``launch``). Read it with
-:func:`load_trajectory`.
+:func:`load_trajectory`. While ``launch`` runs, the trajectory is in
+``trajectory.parts/`` (:mod:`aes_ros.run_writer`); :func:`load_trajectory` reads
+those too, and :func:`rebuild_run_outputs` (``aes-swarm report DIR``) writes every
+output from them after a crash. The files are written under a temporary name and
+renamed, so each is either complete or absent.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import json
 import math
+import os
+import shutil
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 
 from aes_ros import metrics, plots
+from aes_ros import scenario as scenario_mod
 from aes_ros.model import total_forces
 from aes_ros.scenario import Scenario
 
@@ -31,6 +42,8 @@ CSV_COLUMNS = (
     "t", "alignment", "heading_order", "total_force", "centroid_x", "centroid_y",
     "angular_velocity",
 )  # fmt: skip
+#: Where a running launch keeps its trajectory, one ``part-NNNNNN.npz`` per flush.
+PARTS_DIR = "trajectory.parts"
 
 
 @dataclass(frozen=True)
@@ -43,9 +56,27 @@ class Trajectory:
 
 
 def load_trajectory(path: Path) -> Trajectory:
-    """Read a ``trajectory.npz`` written by ``simulate`` or ``launch``."""
-    with np.load(path) as data:
-        return Trajectory(data["times"], data["positions"], data["headings"])
+    """Read a ``trajectory.npz`` written by ``simulate`` or ``launch``, or a run
+    directory: its ``trajectory.npz``, else the parts of a run still going or cut
+    short (concatenated in order)."""
+    path = Path(path)
+    run_dir = path if path.is_dir() else path.parent
+    npz = path if not path.is_dir() else path / "trajectory.npz"
+    if npz.exists():
+        with np.load(npz) as data:
+            return Trajectory(data["times"], data["positions"], data["headings"])
+    parts = sorted((run_dir / PARTS_DIR).glob("part-*.npz"))
+    if not parts:
+        raise FileNotFoundError(f"{run_dir}: no trajectory.npz and no {PARTS_DIR}/")
+    loaded = []
+    for part in parts:
+        with np.load(part) as data:
+            loaded.append((data["times"], data["positions"], data["headings"]))
+    return Trajectory(
+        np.concatenate([t for t, _, _ in loaded]),
+        np.concatenate([p for _, p, _ in loaded], axis=1),
+        np.concatenate([h for _, _, h in loaded], axis=1),
+    )
 
 
 def metrics_table(
@@ -79,11 +110,26 @@ def metrics_table(
 
 
 def write_metrics_csv(path: Path, table: dict[str, np.ndarray]) -> None:
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh)
+    """``metrics.csv``: a header of :data:`CSV_COLUMNS`, one row per sample (6 digits)."""
+    with _replacing(path, "w", newline="") as fh:
+        writer = csv.writer(fh, lineterminator="\n")
         writer.writerow(CSV_COLUMNS)
         for row in zip(*(table[c] for c in CSV_COLUMNS), strict=True):
             writer.writerow([f"{v:.6g}" for v in row])
+
+
+@contextlib.contextmanager
+def _replacing(path: Path, mode: str, **kwargs: Any) -> Iterator[IO]:
+    """A file opened under a temporary name next to ``path``, renamed to ``path`` when
+    the block ends without error: readers see the old file or the new one, never half."""
+    path = Path(path)
+    temporary = path.with_name("." + path.name + ".tmp")
+    try:
+        with open(temporary, mode, **kwargs) as fh:
+            yield fh
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
 
 
 def summary(table: dict[str, np.ndarray], label: str, n_robots: int, runs: int = 1) -> str:
@@ -126,8 +172,8 @@ def write_run_outputs(
         raise ValueError(
             f"positions {positions.shape}, headings {headings.shape}: need (B, T, N, 2), (B, T, N)"
         )
-    np.savez_compressed(out_dir / "trajectory.npz", times=times, positions=positions,
-                        headings=headings)  # fmt: skip
+    with _replacing(out_dir / "trajectory.npz", "wb") as fh:
+        np.savez_compressed(fh, times=times, positions=positions, headings=headings)
     table = metrics_table(times, positions, headings, scenario)
     write_metrics_csv(out_dir / "metrics.csv", table)
     _, neighbors, _ = scenario.sheet()
@@ -139,3 +185,30 @@ def write_run_outputs(
         table["total_force"], title=label + (f", mean of {runs} runs" if runs > 1 else ""),
     )  # fmt: skip
     return summary(table, label, n, runs)
+
+
+def rebuild_run_outputs(out_dir: Path) -> str:
+    """Every output of a run directory from what is on disk (``aes-swarm report DIR``).
+
+    For a launch cut short (the launcher killed, the machine down): the trajectory
+    from ``trajectory.parts/`` (or ``trajectory.npz``), the scenario from
+    ``scenario.yaml``, the label from ``run.json``. Writes ``trajectory.npz``,
+    ``metrics.csv`` and the plots, removes the parts, returns the summary line.
+    """
+    out_dir = Path(out_dir)
+    scenario_file = out_dir / "scenario.yaml"
+    if not scenario_file.exists():
+        raise FileNotFoundError(f"{out_dir}: no scenario.yaml (not the output of a launch?)")
+    scenario = scenario_mod.load(scenario_file)
+    trajectory = load_trajectory(out_dir)
+    if len(trajectory.times) < 2:
+        raise ValueError(f"{out_dir}: {len(trajectory.times)} samples; need at least two")
+    label = "run"
+    run_file = out_dir / "run.json"
+    if run_file.exists():
+        label = json.loads(run_file.read_text()).get("label", label)
+    summary = write_run_outputs(
+        out_dir, trajectory.times, trajectory.positions, trajectory.headings, scenario, label
+    )
+    shutil.rmtree(out_dir / PARTS_DIR, ignore_errors=True)
+    return summary

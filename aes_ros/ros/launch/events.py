@@ -1,0 +1,117 @@
+"""The run's fault and recovery log: ``events.csv``, one line per event, on disk at once.
+
+Columns: ``wall_time`` (ISO 8601, local time with offset), ``sim_time`` [s] (the
+latest sim time the launcher saw; empty before the first poses), ``process``,
+``event`` (what happened), ``exit`` (exit code, or the signal's name), ``action``
+(what the launcher did about it). Every line is written with one ``os.write`` of
+a whole line to a file opened for appending, so the file holds every event up to
+a crash of the launcher itself and is never left with half a line.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import signal
+from collections import Counter
+from collections.abc import Callable
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+COLUMNS = ("wall_time", "sim_time", "process", "event", "exit", "action")
+
+
+def exit_text(returncode: int | None) -> str:
+    """``0``/``1``/… for an exit code, ``SIGKILL`` for a death by signal, "" for none."""
+    if returncode is None:
+        return ""
+    if returncode < 0:
+        try:
+            return signal.Signals(-returncode).name
+        except ValueError:
+            return f"signal {-returncode}"
+    return str(returncode)
+
+
+@dataclass(frozen=True)
+class Event:
+    process: str
+    event: str
+    exit: str = ""
+    action: str = ""
+    sim_time: float | None = None
+
+
+class EventLog:
+    """Appends events to ``path`` and says each one (``say``, e.g. ``print``).
+
+    ``counts`` counts the events by their ``event`` text, for the final summary.
+    A write that fails (disk full) is said once and the log goes on in memory.
+    """
+
+    def __init__(self, path: Path, say: Callable[[str], None] = print) -> None:
+        self.path = Path(path)
+        self.say = say
+        self.events: list[Event] = []
+        self.counts: Counter[str] = Counter()
+        self._fd: int | None = None
+        self.error: str | None = None
+        try:
+            new = not self.path.exists() or self.path.stat().st_size == 0
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+            if new:
+                self._write(COLUMNS)
+        except OSError as exc:
+            self._failed(exc)
+
+    def record(
+        self,
+        process: str,
+        event: str,
+        *,
+        exit: str = "",
+        action: str = "",
+        sim_time: float | None = None,
+    ) -> Event:
+        """Log one event: on screen, in ``events.csv``, in :attr:`events`."""
+        item = Event(process, event, exit, action, sim_time)
+        self.events.append(item)
+        self.counts[event] += 1
+        when = "" if sim_time is None else f"{sim_time:.3f}"
+        detail = f" ({exit})" if exit else ""
+        then = f": {action}" if action else ""
+        at = f" at sim time {sim_time:.2f} s" if sim_time is not None else ""
+        self.say(f"launch: {process} {event}{detail}{at}{then}")
+        stamp = datetime.now().astimezone().isoformat(timespec="milliseconds")
+        self._write((stamp, when, process, event, exit, action))
+        return item
+
+    def _write(self, row: tuple[str, ...]) -> None:
+        if self._fd is None:
+            return
+        buffer = io.StringIO()
+        csv.writer(buffer, lineterminator="\n").writerow(row)
+        try:
+            os.write(self._fd, buffer.getvalue().encode())
+        except OSError as exc:
+            self._failed(exc)
+
+    def _failed(self, exc: OSError) -> None:
+        self.error = f"{self.path}: {exc.strerror or exc}"
+        self.say(f"launch: cannot write events.csv ({self.error}); events go on screen only")
+        if self._fd is not None:
+            os.close(self._fd)
+        self._fd = None
+
+    def close(self) -> None:
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
+
+
+def read_events(path: Path) -> list[dict[str, str]]:
+    """The rows of an ``events.csv``."""
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
