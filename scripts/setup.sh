@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -e ".[test,bench]"
-# tests/test_multihost.py injects packet loss with nftables: install nft when
+# tests/system/test_multihost.py injects packet loss with nftables: install nft when
 # it is missing and we are root (quietly; without apt the loss test skips).
 if ! command -v nft >/dev/null 2>&1 && [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
     if ! { timeout 300 apt-get update -qq &&

@@ -4,7 +4,7 @@ Input is cleaned here: a message with NaN/inf, a coordinate beyond
 :data:`MAX_COORDINATE` or the wrong length raises :class:`BadMessageError`
 (callers drop it with a throttled warning and keep the last good value) instead
 of reaching the model. Within that bound the model's output is finite
-(tests/test_bad_input.py checks it with hypothesis).
+(tests/unit/test_conversions.py checks it with hypothesis).
 """
 
 from __future__ import annotations

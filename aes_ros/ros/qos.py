@@ -35,7 +35,7 @@ COMMAND = QoSProfile(
 #: resent them; with 10 a burst of 19 was lost) and given to late readers that ask
 #: for them (transient-local). Only the recorder does: it would otherwise miss
 #: the first commands of a robot published before discovery matched the two
-#: (tests/test_recording.py). Volatile readers (the bridge, a motor driver) match
+#: (tests/system/test_recording.py). Volatile readers (the bridge, a motor driver) match
 #: as before and never receive old commands.
 COMMAND_KEPT = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
@@ -48,7 +48,7 @@ COMMAND_KEPT = QoSProfile(
 #: Publishers stay reliable (COMMAND; a best-effort reader matches them): with a
 #: reliable reader, one lost datagram holds back every later command of that robot
 #: until the writer's next heartbeat (3 s by default), so under packet loss the
-#: bridge would drive with stale commands (tests/test_multihost.py).
+#: bridge would drive with stale commands (tests/system/test_multihost.py).
 LATEST_COMMAND = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=1,
@@ -68,7 +68,7 @@ LATCHED = QoSProfile(
 #: reader of depth 1 still gets only the newest value), but the writer keeps its
 #: last 100 samples: with a history of 1 a sample is replaced by the next one
 #: before a reader that missed a datagram (a busy recorder) can ask for it again,
-#: and the bag would lack it (tests/test_recording.py).
+#: and the bag would lack it (tests/system/test_recording.py).
 LATCHED_WRITER = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=100,
@@ -80,7 +80,7 @@ LATCHED_WRITER = QoSProfile(
 #: reads them best-effort (SENSOR: a late pose is worthless to a controller; rclpy's
 #: /clock subscription is best-effort too), which a reliable writer serves just the
 #: same. The recorder reads them reliably, so that a datagram it missed while busy
-#: is resent instead of leaving a step out of the bag (tests/test_recording.py).
+#: is resent instead of leaving a step out of the bag (tests/system/test_recording.py).
 STREAM_WRITER = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=50,

@@ -1,6 +1,6 @@
 """The ROS system across several hosts, with and without packet loss (SPEC §7).
 
-"Hosts" are Linux network namespaces on one private LAN (tests/netns.py):
+"Hosts" are Linux network namespaces on one private LAN (tests/helpers/netns.py):
 aes-sim-bridge, aes-supervisor and an observer in one namespace, one
 aes-robot-host with 8 of the 16 robots in each of two others, joined by veth
 pairs to a Linux bridge (10.77.0.0/24, addresses only inside the namespaces).
@@ -17,7 +17,7 @@ own ROS_DOMAIN_ID still applies; the namespaces isolate the traffic anyway).
 - Multicast blocked, discovery by ``ROS_STATIC_PEERS``, 10 % of the UDP
   datagrams each namespace receives from the LAN dropped by an nftables rule
   (``numgen random mod 10 0 drop``; ``tc netem`` is not in this kernel): it
-  still converges. Fast DDS profile tests/fastdds_lossy_udp.xml: UDPv4 only,
+  still converges. Fast DDS profile tests/system/fastdds_lossy_udp.xml: UDPv4 only,
   defaults otherwise. This needs the bridge to read cmd_vel best-effort
   (``LATEST_COMMAND``): with a reliable reader ψ stayed near 0.7, because a lost
   datagram holds back that robot's later commands (in-order delivery) until the
@@ -39,23 +39,18 @@ import sys
 import time
 from pathlib import Path
 
-import netns
 import numpy as np
 import pytest
+from helpers import netns
 
 from aes_ros import report, scenario
-
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip("rclpy")
-
-from aes_ros.ros.launch.plan import (  # noqa: E402
+from aes_ros.ros.launch.plan import (
     LaunchConfig,
     node_commands,
     write_robot_params,
     write_scenario,
 )
-from aes_ros.ros.launch.processes import executable  # noqa: E402
+from aes_ros.ros.launch.processes import executable
 
 N = 16
 #: Sim time [s] sampled after every robot moves, and the tail [s] the checks average.
@@ -139,7 +134,7 @@ def run_swarm(
     dead = {name: p.returncode for name, p in procs.items() if p.poll() is not None}
     packets = {ns: lan.link_packets(ns) for ns in lan.namespaces}
     codes = {name: spawn.stop(p) for name, p in procs.items()}
-    log = (tmp_path / "observer-0.log").read_text()
+    log = spawn.log(observer).read_text()
     assert rc == 0, f"observer ended with {rc} after {wall:.0f} s:\n{log}\n{spawn.logs()}"
     assert not dead, f"processes died during the run: {dead}\n{spawn.logs()}"
     assert all(c == 0 for c in codes.values()), f"unclean exits {codes}\n{spawn.logs()}"

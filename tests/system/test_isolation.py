@@ -2,9 +2,9 @@
 discovery range is LOCALHOST, can neither see nor steer the swarm.
 
 The swarm is aes-sim-bridge + aes-supervisor (4 robots, linear setup: west); the
-stranger (tests/ros_probe.py) listens to /swarm/poses and publishes /swarm/cmd
+stranger (tests/helpers/stranger.py) listens to /swarm/poses and publishes /swarm/cmd
 (north) and /mona_0/cmd_vel (spin) for a few seconds. Each negative check has a
-positive control showing that the same probe does see and steer when it may.
+positive control showing that the same stranger does see and steer when it may.
 """
 
 from __future__ import annotations
@@ -17,61 +17,58 @@ import subprocess
 import sys
 from pathlib import Path
 
+import helpers
 import pytest
+from helpers.probe import Probe
+from helpers.ros_env import reserved_domain_id
 
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip("rclpy")
-
-from conftest import reserved_domain_id  # noqa: E402
-from test_ros_system import Observer  # noqa: E402
-
-PROBE = Path(__file__).with_name("ros_probe.py")
+#: The stranger, run as a script.
+STRANGER = str(Path(helpers.__file__).with_name("stranger.py"))
 N = 4
 WORLD = ("-p", "scenario:=linear", "-p", f"num_robots:={N}")
 
 
-def probe(env: dict[str, str], *args: str, prefix: tuple[str, ...] = (), seconds: float = 4.0):
+def run_stranger(
+    env: dict[str, str], *args: str, prefix: tuple[str, ...] = (), seconds: float = 4.0
+) -> dict:
+    """Run the stranger script with ``env`` (after ``prefix``); its JSON report."""
     out = subprocess.run(
-        [*prefix, sys.executable, str(PROBE), "--seconds", str(seconds), *args],
+        [*prefix, sys.executable, STRANGER, "--seconds", str(seconds), *args],
         env=env, capture_output=True, text=True, timeout=60 + seconds,
     )  # fmt: skip
     assert out.returncode == 0, out.stdout + out.stderr
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def start_swarm(spawn) -> Observer:
+def start_swarm(spawn, probe: Probe) -> float:
+    """Bridge and supervisor of N robots, watched by ``probe``; robot 0's heading."""
     spawn.start("aes-sim-bridge", "--ros-args", *WORLD, "-p", "real_time_factor:=1.0")
     spawn.start("aes-supervisor", "--ros-args", *WORLD, "-p", "use_sim_time:=true")
-    obs = Observer(N)
-    obs.spin_until(lambda: obs.desired and len(obs.times) > 5, 60.0, "the swarm")
-    return obs
+    probe.sample_poses(N)
+    probe.wait(lambda: probe.desired and len(probe.times) > 5, 60.0, "the swarm")
+    return float(probe.headings[-1][0])
 
 
-def untouched(obs: Observer, heading0: float) -> bool:
+def untouched(probe: Probe, heading0: float) -> bool:
     """Still the one west command, robot 0 not turned."""
-    return [d.twist.linear.x for d in obs.desired] == [-1.0] and abs(
-        obs.headings[-1][0] - heading0
+    return [d.twist.linear.x for d in probe.desired] == [-1.0] and abs(
+        probe.headings[-1][0] - heading0
     ) < 1e-9
 
 
-def test_another_domain_cannot_see_or_steer(spawn, ros_env) -> None:
-    obs = start_swarm(spawn)
-    try:
-        heading0 = float(obs.headings[-1][0])
-        with reserved_domain_id() as other:
-            result = probe({**ros_env, "ROS_DOMAIN_ID": str(other)}, "--steer")
-        obs.wait_sim(obs.now + 1.0)
-        assert result["poses"] == 0 and set(result["matched"].values()) == {0}, result
-        assert untouched(obs, heading0)
-        # Control: the same probe in the swarm's domain sees it and steers it.
-        result = probe(ros_env, "--steer")
-        assert result["poses"] > 0 and result["matched"]["/swarm/cmd"] >= 1, result
-        obs.spin_until(lambda: obs.desired[-1].twist.linear.y == 1.0, 20.0, "steered north")
-        obs.wait_sim(obs.now + 0.5)
-        assert not untouched(obs, heading0)
-    finally:
-        obs.close()
+def test_another_domain_cannot_see_or_steer(spawn, ros_env, probe) -> None:
+    heading0 = start_swarm(spawn, probe)
+    with reserved_domain_id() as other:
+        result = run_stranger({**ros_env, "ROS_DOMAIN_ID": str(other)}, "--steer")
+    probe.wait_sim(probe.now + 1.0)
+    assert result["poses"] == 0 and set(result["matched"].values()) == {0}, result
+    assert untouched(probe, heading0)
+    # Control: the same stranger in the swarm's domain sees it and steers it.
+    result = run_stranger(ros_env, "--steer")
+    assert result["poses"] > 0 and result["matched"]["/swarm/cmd"] >= 1, result
+    probe.wait(lambda: probe.desired[-1].twist.linear.y == 1.0, 20.0, "steered north")
+    probe.wait_sim(probe.now + 0.5)
+    assert not untouched(probe, heading0)
 
 
 @contextlib.contextmanager
@@ -108,7 +105,7 @@ def namespace_host():
         run("netns", "del", name, check=False)
 
 
-def test_outside_the_discovery_range_cannot_see_or_steer(spawn, ros_env) -> None:
+def test_outside_the_discovery_range_cannot_see_or_steer(spawn, ros_env, probe) -> None:
     """The swarm runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST; the stranger sits
     in another network namespace ("host") with range SUBNET, on UDP (namespaces share
     /dev/shm). Control: a node on the swarm's host with range SUBNET (and the
@@ -117,31 +114,25 @@ def test_outside_the_discovery_range_cannot_see_or_steer(spawn, ros_env) -> None
     With automatic discovery the stranger neither sees nor steers the swarm. Measured
     limit, also checked here: a stranger that names the swarm's host in
     ROS_STATIC_PEERS does get in — LOCALHOST limits what the swarm announces, not
-    whom it answers (README "Reliability": use a firewall or SROS2)."""
+    whom it answers (docs/reliability.md: use a firewall or SROS2)."""
     udp = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4", "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET"}
     with namespace_host() as (ns, mine, theirs, ip):
         subprocess.run([ip, "-n", ns, "route", "add", "default", "dev", "eth0"], check=True)
-        obs = start_swarm(spawn)
+        heading0 = start_swarm(spawn, probe)
+        # The control: a SUBNET node on the swarm's host, the stranger its static peer.
+        spawn.env = {**ros_env, **udp, "ROS_STATIC_PEERS": theirs}
+        talker = spawn.start(sys.executable, STRANGER, "--seconds", "20", "--talk", name="talker")
         try:
-            heading0 = float(obs.headings[-1][0])
-            talker = subprocess.Popen(
-                [sys.executable, str(PROBE), "--seconds", "20", "--talk"],
-                env={**ros_env, **udp, "ROS_STATIC_PEERS": theirs},
-                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            )  # fmt: skip
-            try:
-                stranger = {**ros_env, **udp}
-                stranger.pop("ROS_STATIC_PEERS", None)
-                prefix = (ip, "netns", "exec", ns)
-                result = probe(stranger, "--steer", seconds=6.0, prefix=prefix)
-                obs.wait_sim(obs.now + 1.0)
-                kept = untouched(obs, heading0)
-                peer = probe({**stranger, "ROS_STATIC_PEERS": mine}, seconds=4.0, prefix=prefix)
-            finally:
-                talker.kill()
-                talker.wait()
+            outside = {**ros_env, **udp}
+            outside.pop("ROS_STATIC_PEERS", None)
+            prefix = (ip, "netns", "exec", ns)
+            result = run_stranger(outside, "--steer", seconds=6.0, prefix=prefix)
+            probe.wait_sim(probe.now + 1.0)
+            kept = untouched(probe, heading0)
+            peer = run_stranger({**outside, "ROS_STATIC_PEERS": mine}, seconds=4.0, prefix=prefix)
         finally:
-            obs.close()
+            talker.kill()
+            talker.wait()
     assert result["control"] > 0, f"the probe reached nothing at all: {result}"
     assert result["poses"] == 0, result
     assert set(result["matched"].values()) == {0}, result

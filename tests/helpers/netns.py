@@ -1,6 +1,6 @@
 """Several "hosts" on one machine: Linux network namespaces on a private LAN.
 
-Used by tests/test_multihost.py (SPEC §7 "Processes and performance design",
+Used by tests/system/test_multihost.py (SPEC §7 "Processes and performance design",
 multi-host and packet loss). :class:`Lan` builds
 
     namespace <prefix>b   (bridge + supervisor + observer)  br0 10.77.0.1/24
@@ -18,9 +18,9 @@ go with them).
 
 Run as a script inside the bridge namespace, this module is the observer::
 
-    ip netns exec NS python tests/netns.py observe --robots 16 --duration 20 --out obs.npz
+    ip netns exec NS python tests/helpers/netns.py observe --robots 16 --duration 20 --out obs.npz
 
-It samples ``/swarm/poses`` (with the launcher's monitor) and
+It samples ``/swarm/poses`` (with the tests' probe, :class:`helpers.probe.Probe`) and
 ``/swarm/alignment`` until every robot has moved and then for ``duration`` s
 of sim time, and writes them to an ``.npz`` file.
 """
@@ -247,50 +247,46 @@ def observe(n: int, duration: float, out: Path, timeout: float) -> int:
     Returns 0 when ``duration`` s of sim time after every robot moved were
     sampled, 1 on the wall-clock ``timeout`` (what was sampled is written anyway).
     """
+    import sys
+
     import numpy as np
+    import pytest
     from std_msgs.msg import Float64
 
-    from aes_ros.ros.launch.monitor import Monitor
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script
+    from aes_ros.ros import interface as names
     from aes_ros.ros.qos import LATCHED
+    from helpers.probe import Probe
 
-    mon = Monitor(n)
-    alignment: list[tuple[float, float]] = []  # (sim time of the last poses, ψ)
-    mon.node.create_subscription(
-        Float64,
-        "/swarm/alignment",
-        lambda msg: alignment.append((mon.times[-1] if mon.times else -1.0, msg.data)),
-        LATCHED,
-    )
+    probe = Probe("observer").sample_poses(n)
+    # (sim time of the last poses, ψ)
+    alignment = probe.record(Float64, names.ALIGNMENT, LATCHED, lambda m: (probe.now, m.data))
     start = time.monotonic()
     t_go = None
     status = 1
     try:
-        while time.monotonic() - start < timeout:
-            mon.spin_once(0.05)
-            if not mon.times:
-                continue
-            if t_go is None:
-                moved = np.linalg.norm(mon.positions[-1] - mon.positions[0], axis=-1)
-                if len(mon.times) > 1 and bool(np.all(moved > 1e-4)):
-                    t_go = mon.times[-1]
-                    print(f"observer: all {n} robots moving at sim time {t_go:.2f} s "
-                          f"(wall {time.monotonic() - start:.1f} s)", flush=True)  # fmt: skip
-            elif mon.times[-1] >= t_go + duration - 1e-6:
-                status = 0
-                break
+        t_go = probe.wait_all_moving(timeout)
+        print(f"observer: all {n} robots moving at sim time {t_go:.2f} s "
+              f"(wall {time.monotonic() - start:.1f} s)", flush=True)  # fmt: skip
+        probe.wait_sim(t_go + duration - 1e-6, timeout - (time.monotonic() - start))
+        status = 0
+    except pytest.fail.Exception as exc:
+        print(f"observer: {exc}", flush=True)
     finally:
-        times = np.asarray(mon.times)
-        np.savez(
-            out,
-            times=times,
-            positions=np.asarray(mon.positions).reshape(len(times), n, 2),
-            headings=np.asarray(mon.headings).reshape(len(times), n),
-            alignment=np.asarray(alignment, dtype=float).reshape(-1, 2),
-            t_go=np.nan if t_go is None else t_go,
-            wall=time.monotonic() - start,
-        )
-        mon.close()
-    print(f"observer: {len(mon.times)} pose samples, {len(alignment)} alignment values, "
+        try:
+            probe.close()  # no more samples from here on
+        finally:
+            times = np.asarray(probe.times)
+            np.savez(
+                out,
+                times=times,
+                positions=np.asarray(probe.positions[: len(times)]).reshape(len(times), n, 2),
+                headings=np.asarray(probe.headings[: len(times)]).reshape(len(times), n),
+                alignment=np.asarray(alignment, dtype=float).reshape(-1, 2),
+                t_go=np.nan if t_go is None else t_go,
+                wall=time.monotonic() - start,
+            )
+    print(f"observer: {len(probe.times)} pose samples, {len(alignment)} alignment values, "
           f"status {status}", flush=True)  # fmt: skip
     return status
 

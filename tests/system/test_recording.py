@@ -19,23 +19,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import rclpy
+from geometry_msgs.msg import Twist, Vector3
+from helpers.ros_env import TIMEOUT, assert_no_orphans, wait_for
+from rclpy.duration import Duration
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Float64
 
-pytestmark = pytest.mark.ros
-
-rclpy = pytest.importorskip("rclpy")
-
-from conftest import wait_for  # noqa: E402
-from geometry_msgs.msg import Twist, Vector3  # noqa: E402
-from rclpy.duration import Duration  # noqa: E402
-from rclpy.signals import SignalHandlerOptions  # noqa: E402
-from std_msgs.msg import Float64  # noqa: E402
-from test_robot_node import TIMEOUT, Driver  # noqa: E402
-from test_ros_system import assert_no_orphans  # noqa: E402
-
-from aes_ros.ros.bag import BagWriter, bag_is_closed, read_bag  # noqa: E402
-from aes_ros.ros.conversions import stamp_to_ns  # noqa: E402
-from aes_ros.ros.qos import COMMAND_KEPT, LATCHED  # noqa: E402
-from aes_ros.ros.recorder import FLUSH_PERIOD, RecorderNode  # noqa: E402
+from aes_ros.ros import interface as names
+from aes_ros.ros.bag import BagWriter, bag_is_closed, read_bag
+from aes_ros.ros.conversions import stamp_to_ns
+from aes_ros.ros.interface import robot_topic
+from aes_ros.ros.qos import COMMAND_KEPT, LATCHED
+from aes_ros.ros.recorder import FLUSH_PERIOD, RecorderNode
 
 COUNTS = re.compile(r"\[published\]: (/\S+): (.*)")
 
@@ -65,11 +61,12 @@ def test_launch_records_every_message_and_closes_the_bag_on_a_signal(
         "--lockstep", "--real-time-factor", "0", "--duration", "0", "--record", str(bag),
         "--out", str(out), name="launch",
     )  # fmt: skip
-    log = spawn.procs[-1][1]
+    log = spawn.log(launcher)
     assert wait_for(lambda: "robots moving" in log.read_text(), 180.0), log.read_text()
     assert wait_for(lambda: bag.stat().st_size > 50_000, 60.0)  # a few chunks in
     recorder_log = out / "logs" / "recorder.log"
-    assert wait_for(lambda: "receiving /swarm/alignment" in recorder_log.read_text(), 60.0)
+    receiving = names.recorder_receiving(names.ALIGNMENT)
+    assert wait_for(lambda: receiving in recorder_log.read_text(), 60.0)
     os.killpg(launcher.pid, sig)
     assert launcher.wait(60) == 0, log.read_text()
     assert_no_orphans(ros_env)
@@ -106,64 +103,61 @@ def test_launch_records_every_message_and_closes_the_bag_on_a_signal(
     print(f"\n{sig.name}: {total} messages in the bag, 0 lost, {len(steps)} steps")
 
 
-def test_bag_of_a_killed_recorder_reads_up_to_its_last_chunk(spawn, ros_env, tmp_path) -> None:
+def test_bag_of_a_killed_recorder_reads_up_to_its_last_chunk(spawn, probe, tmp_path) -> None:
     """The recorder on its own, fed by the test at 200 Hz on /swarm/alignment; SIGKILL:
     the bag has no summary but reads back, in order, every message up to the last
     flush (messages of the last FLUSH_PERIOD s at most are missing)."""
     bag = tmp_path / "killed.mcap"
     recorder = spawn.start("python", "-m", "aes_ros.ros.recorder", str(bag), name="recorder")
-    log = spawn.procs[-1][1]
-    assert wait_for(lambda: "recording to" in log.read_text(), TIMEOUT)
-    driver = Driver()
-    try:
-        # The supervisor's QoS: the recorder's subscription is transient-local.
-        pub = driver.node.create_publisher(Float64, "/swarm/alignment", LATCHED)
-        assert wait_for(lambda: pub.get_subscription_count() > 0, TIMEOUT)
-        sent = 0
-        end = time.monotonic() + 3.0 * FLUSH_PERIOD
-        while time.monotonic() < end:
-            pub.publish(Float64(data=float(sent)))
-            sent += 1
-            time.sleep(0.005)
-        time.sleep(0.2)  # let the last ones arrive: then kill
-        os.killpg(recorder.pid, signal.SIGKILL)
-        recorder.wait(10)
-    finally:
-        driver.close()
+    log = spawn.log(recorder)
+    assert wait_for(lambda: names.RECORDER_STARTED in log.read_text(), TIMEOUT)
+    # The supervisor's QoS: the recorder's subscription is transient-local.
+    pub = probe.publisher(Float64, names.ALIGNMENT, LATCHED)
+    # Matched both ways before the burst: a reader drops what a writer sends before
+    # the reader has matched it, and this writer keeps only its last message. The
+    # first message acknowledged, the recorder has matched (and has that message).
+    pub.publish(Float64(data=0.0))
+    assert pub.wait_for_all_acked(Duration(seconds=TIMEOUT))
+    sent = 1
+    end = time.monotonic() + 3.0 * FLUSH_PERIOD
+    while time.monotonic() < end:
+        pub.publish(Float64(data=float(sent)))
+        sent += 1
+        time.sleep(0.005)
+    time.sleep(0.2)  # let the last ones arrive: then kill
+    os.killpg(recorder.pid, signal.SIGKILL)
+    recorder.wait(10)
     assert not bag_is_closed(bag)
     values = [msg.data for topic, _, msg in read_bag(bag) if topic == "/swarm/alignment"]
     assert values == [float(i) for i in range(len(values))], "not the published sequence"
-    rate = sent / (3.0 * FLUSH_PERIOD)
+    rate = (sent - 1) / (3.0 * FLUSH_PERIOD)  # of the burst
     missing = sent - len(values)
     assert 0 <= missing <= rate * (FLUSH_PERIOD + 0.5), f"{missing} of {sent} missing"
     print(f"\nrecorder killed: {len(values)} of {sent} messages readable")
 
 
-def test_recorder_writes_what_its_queues_hold_when_it_stops(ros_env, tmp_path) -> None:
+def test_recorder_writes_what_its_queues_hold_when_it_stops(probe, tmp_path) -> None:
     """Messages acknowledged to a robot but not yet taken by the recorder when it is
     stopped (a busy recorder) still go into the bag, in order: the recorder here is
     never spun, so everything it writes comes from ``take_remaining``."""
     bag = BagWriter(tmp_path / "drained.mcap")
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
-    driver = Driver()
+    cmd_vel = robot_topic(0, names.CMD_VEL)
     try:
         recorder = RecorderNode(bag, num_robots=1, discover=False, context=context)
-        pub = driver.publisher(Twist, "/mona_0/cmd_vel", COMMAND_KEPT)
+        pub = probe.publisher(Twist, cmd_vel, COMMAND_KEPT)
         # Matched both ways (else the reader drops what comes before its match).
-        assert wait_for(
-            lambda: recorder._subs["/mona_0/cmd_vel"].get_publisher_count() > 0, TIMEOUT
-        )
+        assert wait_for(lambda: recorder._subs[cmd_vel].get_publisher_count() > 0, TIMEOUT)
         for i in range(30):
             pub.publish(Twist(linear=Vector3(x=float(i))))
         assert pub.wait_for_all_acked(Duration(seconds=TIMEOUT))
-        assert bag.counts["/mona_0/cmd_vel"] == 0
+        assert bag.counts[cmd_vel] == 0
         assert recorder.take_remaining() == 30
         assert recorder.take_remaining() == 0
         recorder.destroy_node()
     finally:
         bag.close()
-        driver.close()
         rclpy.try_shutdown(context=context)
     xs = [msg.linear.x for topic, _, msg in read_bag(tmp_path / "drained.mcap")]
     assert xs == [float(i) for i in range(30)]

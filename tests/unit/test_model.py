@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from aes_ros import formations, metrics, model
-from aes_ros.model import Gains, SwarmCommand
+from aes_ros.model import Gains, RobotInput, SwarmCommand, evaluate_robots, robot_command
 
 QUIET = Gains(d_r=0.0, d_theta=0.0)
 
@@ -178,3 +178,47 @@ def test_formation_from_csv(tmp_path) -> None:
     np.testing.assert_allclose(nominal, [[0, 0], [0.2, 0], [0.4, 0]])
     neighbors, _ = formations.neighbor_table(nominal, 0.21)
     assert list((neighbors >= 0).sum(axis=1)) == [1, 2, 1]
+
+
+def test_host_evaluates_its_robots_at_once_exactly_as_one_by_one() -> None:
+    """``aes-robot-host`` evaluates all its robots in one batched call: the commands and
+    forces are bit for bit those of robot_command() per robot, with neighbour counts,
+    gains, noise, limits and rotation centres differing from robot to robot."""
+    rng = np.random.default_rng(3)
+
+    def jobs() -> list[RobotInput]:
+        out = []
+        for r in range(7):
+            k = [0, 1, 3, 6, 4, 2, 6][r]
+            gains = Gains(alpha=0.01 * (r + 1), beta=0.5 + r / 10, k=1.0 + r, d_r=0.1 * (r % 3))
+            gains = Gains(**{**gains.__dict__, "d_theta": 0.02 * (r % 2)})
+            noisy = gains.d_r > 0 or gains.d_theta > 0
+            center = None if r == 4 else (0.3 * r, -0.2)
+            out.append(
+                RobotInput(
+                    positions[r],
+                    headings[r],
+                    neighbours[r][:k],
+                    rests[r][:k],
+                    gains,
+                    SwarmCommand((-1.0, 0.2 * r), [0.0, 0.4, -0.7][r % 3], center),
+                    0.02 + 0.01 * r,
+                    np.random.default_rng(r) if noisy else None,
+                    (0.05, 1.0) if r % 2 else None,
+                )
+            )
+        return out
+
+    positions = rng.normal(size=(7, 2))
+    headings = rng.uniform(-np.pi, np.pi, 7)
+    neighbours = rng.normal(size=(7, 6, 2))
+    rests = rng.uniform(0.1, 0.5, (7, 6))
+    rests[3, 2] = 0.0  # a rest length latched on top of its neighbour
+    batch_jobs, single_jobs = jobs(), jobs()
+    for _ in range(3):  # each robot's generator advances alike, step after step
+        batch = evaluate_robots(batch_jobs)
+        single = [robot_command(*job.arguments()) for job in single_jobs]
+        for a, b in zip(batch, single, strict=True):
+            assert (a.linear, a.angular) == (b.linear, b.angular)
+            assert np.array_equal(a.force, b.force)
+    assert len({round(c.force[0], 9) for c in batch}) == 7  # the inputs really differ

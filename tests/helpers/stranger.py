@@ -1,4 +1,5 @@
-"""A stranger on the network, for tests/test_isolation.py (run as a script).
+"""A stranger on the network, for tests/system/test_isolation.py (run as a script:
+``python tests/helpers/stranger.py [--steer] [--talk] [--seconds S]``).
 
 Listens to ``/swarm/poses`` and ``/isolation/control`` and, with ``--steer``,
 tries to steer the swarm (``/swarm/cmd`` north, ``/mona_0/cmd_vel`` spinning);
@@ -11,12 +12,23 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
 
-import rclpy
 from geometry_msgs.msg import PoseArray, Twist
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # run as a script: `helpers`
+
+from aes_ros.ros import interface as names
+from aes_ros.ros.interface import robot_topic
+from helpers.messages import twist
+from helpers.probe import Probe
+
+#: A topic only the strangers use: the positive control of the isolation checks.
+CONTROL = "/isolation/control"
 
 
 def main() -> None:
@@ -25,38 +37,30 @@ def main() -> None:
     parser.add_argument("--steer", action="store_true")
     parser.add_argument("--talk", action="store_true")
     args = parser.parse_args()
-    rclpy.init()
-    node = rclpy.create_node("stranger")
-    got = {"poses": 0, "control": 0}
+    probe = Probe("stranger")
     best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
-    node.create_subscription(
-        PoseArray, "/swarm/poses", lambda _: got.__setitem__("poses", got["poses"] + 1), best_effort
-    )
-    node.create_subscription(
-        Float64, "/isolation/control", lambda _: got.__setitem__("control", got["control"] + 1), 10
-    )
-    pubs = {}
+    got = {
+        "poses": probe.record(PoseArray, names.POSES, best_effort),
+        "control": probe.record(Float64, CONTROL, 10),
+    }
+    sends = {}
     if args.steer:
-        pubs["/swarm/cmd"] = node.create_publisher(Twist, "/swarm/cmd", 10)
-        pubs["/mona_0/cmd_vel"] = node.create_publisher(Twist, "/mona_0/cmd_vel", 10)
+        sends[names.CMD] = (Twist, twist(vy=1.0))  # north
+        sends[robot_topic(0, names.CMD_VEL)] = (Twist, twist(w=3.0))  # spin
     if args.talk:
-        pubs["/isolation/control"] = node.create_publisher(Float64, "/isolation/control", 10)
+        sends[CONTROL] = (Float64, Float64(data=1.0))
+    pubs = {
+        topic: probe.publisher(kind, topic, 10, wait=False) for topic, (kind, _) in sends.items()
+    }
     matched = dict.fromkeys(pubs, 0)
-    north, spin = Twist(), Twist()
-    north.linear.y = 1.0
-    spin.angular.z = 3.0
     end = time.monotonic() + args.seconds
     while time.monotonic() < end:
-        rclpy.spin_once(node, timeout_sec=0.1)
+        time.sleep(0.1)
         for topic, pub in pubs.items():
             matched[topic] = max(matched[topic], pub.get_subscription_count())
-            if topic == "/isolation/control":
-                pub.publish(Float64(data=1.0))
-            else:
-                pub.publish(north if topic == "/swarm/cmd" else spin)
-    print(json.dumps({**got, "matched": matched}), flush=True)
-    node.destroy_node()
-    rclpy.try_shutdown()
+            pub.publish(sends[topic][1])
+    print(json.dumps({**{k: len(v) for k, v in got.items()}, "matched": matched}), flush=True)
+    probe.close()
 
 
 if __name__ == "__main__":

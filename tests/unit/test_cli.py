@@ -1,26 +1,46 @@
-"""``aes-swarm simulate`` and ``params`` as a user runs them: outputs, and clear errors."""
+"""``aes-swarm simulate`` and ``params`` as a user runs them: outputs, and clear errors;
+bad arguments of ``launch`` and ``steer`` rejected before anything starts.
+
+``aes-swarm`` runs in-process (:func:`aes_ros.cli.main` returns the exit code, 2 on bad
+input, argparse's errors included).
+"""
 
 from __future__ import annotations
 
 import csv
-import subprocess
-import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
 
+import aes_ros.ros.launch
+import aes_ros.ros.steering
 from aes_ros import scenario
+from aes_ros.cli import main
 from aes_ros.params import PARAMS
 
 
-def aes_swarm(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "aes_ros.cli", *args], capture_output=True, text=True, timeout=120
-    )
+class Run(NamedTuple):
+    returncode: int
+    stdout: str
+    stderr: str
 
 
-def test_simulate_writes_every_output(tmp_path: Path) -> None:
+@pytest.fixture
+def aes_swarm(capsys: pytest.CaptureFixture[str]) -> Callable[..., Run]:
+    """``aes-swarm ARGS…`` in this process: (exit code, stdout, stderr)."""
+
+    def run(*args: str) -> Run:
+        code = main(list(args))
+        out = capsys.readouterr()
+        return Run(code, out.out, out.err)
+
+    return run
+
+
+def test_simulate_writes_every_output(tmp_path: Path, aes_swarm) -> None:
     out = tmp_path / "run"
     proc = aes_swarm(
         "simulate", "--setup", "linear", "--set", "rows=4", "--set", "cols=4",
@@ -44,7 +64,7 @@ def test_simulate_writes_every_output(tmp_path: Path) -> None:
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_scenario_file_and_overrides_are_applied(tmp_path: Path) -> None:
+def test_scenario_file_and_overrides_are_applied(tmp_path: Path, aes_swarm) -> None:
     text = Path(scenario.__file__).with_name("scenarios") / "linear.yaml"
     custom = tmp_path / "north.yaml"
     custom.write_text(text.read_text().replace("direction: [-1.0, 0.0]", "direction: [0.0, 1.0]"))
@@ -71,7 +91,7 @@ def test_scenario_file_and_overrides_are_applied(tmp_path: Path) -> None:
     ],
 )
 def test_bad_input_exits_2_naming_the_field(
-    tmp_path: Path, args: list[str], field: str, allowed: str
+    tmp_path: Path, aes_swarm, args: list[str], field: str, allowed: str
 ) -> None:
     proc = aes_swarm("simulate", *args, "--out", str(tmp_path / "x"))
     assert proc.returncode == 2
@@ -89,7 +109,7 @@ def test_bad_input_exits_2_naming_the_field(
         ("- alpha\n", "expected a mapping"),
     ],
 )
-def test_bad_scenario_file_exits_2(tmp_path: Path, content: str, message: str) -> None:
+def test_bad_scenario_file_exits_2(tmp_path: Path, aes_swarm, content: str, message: str) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text(content)
     proc = aes_swarm("simulate", "--scenario", str(path), "--out", str(tmp_path / "x"))
@@ -98,9 +118,37 @@ def test_bad_scenario_file_exits_2(tmp_path: Path, content: str, message: str) -
     assert "Traceback" not in proc.stderr
 
 
-def test_params_lists_every_parameter_with_its_range() -> None:
+def test_params_lists_every_parameter_with_its_range(aes_swarm) -> None:
     proc = aes_swarm("params")
     assert proc.returncode == 0
     for spec in PARAMS.values():
         assert f"`{spec.name}`" in proc.stdout
     assert "[0, 10]" in proc.stdout  # alpha's range
+
+
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["launch", "--layout", "ring"], "--layout"),
+        (["launch", "--robots", "0"], "--robots"),
+        (["launch", "--neighbor-source", "wifi"], "--neighbor-source"),
+        (["launch", "--real-time-factor", "-1"], "--real-time-factor"),
+        (["launch", "--set", "alpha=-1"], "alpha"),
+        (["launch", "--setup", "spiral"], "--setup"),
+        (["steer"], "--direction"),
+        (["steer", "--omega", "nan"], "--omega"),
+    ],
+)
+def test_bad_arguments_exit_2_naming_the_option(
+    monkeypatch: pytest.MonkeyPatch, aes_swarm, args: list[str], option: str
+) -> None:
+    """``launch`` and ``steer`` reject bad arguments before they start anything."""
+
+    def must_not_run(*_args, **_kwargs):
+        raise AssertionError(f"aes-swarm {args[0]} went on with bad arguments")
+
+    monkeypatch.setattr(aes_ros.ros.launch, "launch", must_not_run)
+    monkeypatch.setattr(aes_ros.ros.steering, "steer", must_not_run)
+    out = aes_swarm(*args)
+    assert out.returncode == 2, out
+    assert option in out.stderr

@@ -1,0 +1,154 @@
+"""A ROS 2 environment of the test's own and the processes it starts.
+
+:func:`reserved_domain_id` hands out a ``ROS_DOMAIN_ID`` held with a file lock, so
+that parallel pytest runs on one machine never share one. :class:`Processes` starts
+console scripts (or ``python -m …``) with the test's environment through the
+launcher's own :class:`~aes_ros.ros.launch.processes.ProcessSet` (process groups,
+SIGINT then SIGKILL, ``fastdds shm clean``), and knows each process's log.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+from aes_ros.ros.launch.processes import Child, ProcessSet
+
+#: Default wait [s] for a reply, a match or a service: generous, since other tests
+#: may load the 2 cores.
+TIMEOUT = 20.0
+#: Where the domain locks live.
+LOCK_DIR = Path("/tmp/aes_swarm_ros_domains")
+#: Domain ids handed to tests (0 is left to users; Linux allows up to 101).
+DOMAIN_IDS = range(1, 101)
+
+
+@contextlib.contextmanager
+def reserved_domain_id() -> Iterator[int]:
+    """Hold an unused ROS_DOMAIN_ID for the duration of the block."""
+    LOCK_DIR.mkdir(exist_ok=True)
+    start = os.getpid() % len(DOMAIN_IDS)
+    for offset in range(len(DOMAIN_IDS)):
+        domain = DOMAIN_IDS[(start + offset) % len(DOMAIN_IDS)]
+        fh = open(LOCK_DIR / f"{domain}.lock", "w")  # held until the block ends
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            fh.close()
+            continue
+        try:
+            yield domain
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+            fh.close()
+        return
+    raise RuntimeError("no free ROS_DOMAIN_ID")
+
+
+def ros_variables(domain: int) -> dict[str, str]:
+    """The variables that put a process in ``domain``, discovering on this host only."""
+    return {
+        "ROS_DOMAIN_ID": str(domain),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "PYTHONUNBUFFERED": "1",
+    }
+
+
+def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 0.05) -> bool:
+    """Poll ``predicate`` until it is true or ``timeout`` s pass; its last value as a bool."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return bool(predicate())
+
+
+def processes_in_domain(domain: str) -> list[str]:
+    """Command lines of live processes (other than this one) with this ROS_DOMAIN_ID."""
+    found = []
+    needle = f"ROS_DOMAIN_ID={domain}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle not in (entry / "environ").read_bytes().split(b"\0"):
+                continue
+            stat = (entry / "stat").read_text()
+            if stat.rsplit(")", 1)[1].split()[0] == "Z":
+                continue
+            found.append((entry / "cmdline").read_bytes().replace(b"\0", b" ").decode())
+        except OSError:
+            continue
+    return found
+
+
+def assert_no_orphans(ros_env: dict[str, str], timeout: float = 15.0) -> None:
+    """Within ``timeout`` s, no process of the test's domain is left."""
+    domain = ros_env["ROS_DOMAIN_ID"]
+    deadline = time.monotonic() + timeout
+    while processes_in_domain(domain) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert processes_in_domain(domain) == []
+
+
+class Processes:
+    """The processes of one test: started with the test's ROS environment, each
+    logging to ``<log_dir>/<name>.log`` (appended to: a process restarted under the
+    same name keeps one log), all stopped by :meth:`stop_all`.
+
+    ``env`` may be replaced before a :meth:`start` (e.g. another discovery range).
+    """
+
+    #: SIGINT, then SIGKILL after this many seconds.
+    STOP_TIMEOUT = 10.0
+
+    def __init__(self, env: dict[str, str], log_dir: Path) -> None:
+        self._set = ProcessSet(log_dir, env)
+
+    @property
+    def env(self) -> dict[str, str]:
+        return self._set.env
+
+    @env.setter
+    def env(self, value: dict[str, str]) -> None:
+        self._set.env = {**value, "PYTHONUNBUFFERED": "1"}
+
+    def start(self, *cmd: str, name: str | None = None) -> subprocess.Popen:
+        """Start ``cmd`` (``cmd[0]`` a console script of this environment, a command
+        on PATH or a path) as ``name`` (default: the command's name)."""
+        return self._set.start(name or Path(cmd[0]).name, cmd).proc
+
+    @property
+    def procs(self) -> list[subprocess.Popen]:
+        """Every process started, in order (a restarted one is there twice)."""
+        return [c.proc for c in self._set.children]
+
+    def _child(self, proc: subprocess.Popen) -> Child:
+        return next(c for c in self._set.children if c.proc is proc)
+
+    def log(self, proc: subprocess.Popen) -> Path:
+        """The log file of ``proc``."""
+        return self._child(proc).log
+
+    def stop(self, proc: subprocess.Popen, timeout: float = STOP_TIMEOUT) -> int:
+        """SIGINT the process group, SIGKILL it if it has not exited in ``timeout`` s;
+        returns the exit code."""
+        self._set.stop([self._child(proc)], timeout)
+        return proc.returncode
+
+    def stop_all(self) -> None:
+        """Stop every process and remove Fast DDS's shared-memory leftovers."""
+        self._set.stop_all(self.STOP_TIMEOUT)
+
+    def logs(self, chars: int = 3000) -> str:
+        """The end of every log (once per log file)."""
+        seen: dict[Path, Child] = {}
+        for child in self._set.children:
+            seen.setdefault(child.log, child)
+        return "\n".join(f"--- {log.name}\n{c.tail(chars)}" for log, c in seen.items())

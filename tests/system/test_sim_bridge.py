@@ -1,0 +1,268 @@
+"""The ``aes-sim-bridge`` process seen from another ROS node (real processes, own domain)."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import signal
+import time
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Twist
+from helpers.probe import STREAM, Probe
+from nav_msgs.msg import Odometry
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import SetBool, Trigger
+
+from aes_ros.model import robot_command, unicycle_step
+from aes_ros.ros import interface as names
+from aes_ros.ros.conversions import quaternion_to_yaw, stamp_to_ns, unicycle_twist
+from aes_ros.ros.interface import robot_topic
+from aes_ros.ros.qos import COMMAND, SENSOR
+from aes_ros.scenario import load
+from aes_ros.simulator import simulate
+
+BRIDGE = "/" + names.SIM_BRIDGE_NODE
+#: Wait [s] for a service of the bridge and its answer.
+SERVICE_TIMEOUT = 10.0
+
+
+@dataclasses.dataclass
+class Bridge:
+    """What the probe sees of the bridge beside the poses: ``/clock`` [s], robot 1's
+    odometry, and a ``cmd_vel`` publisher per robot."""
+
+    clock: list[float]
+    odom: list[Odometry]
+    cmd: list
+
+    def send(self, robot: int, linear: float, angular: float = 0.0) -> None:
+        self.cmd[robot].publish(unicycle_twist(linear, angular))
+
+
+def start_bridge(spawn, probe: Probe, n: int, *params: str):
+    """Start ``aes-sim-bridge`` for ``n`` robots with ``-p`` ``params``; returns the
+    process and the probe's view of it (the caller starts sampling the poses)."""
+    args = ["aes-sim-bridge", "--ros-args"]
+    for p in params:
+        args += ["-p", p]
+    proc = spawn.start(*args, name="sim_bridge")
+    bridge = Bridge(
+        clock=probe.record(Clock, names.CLOCK, STREAM, lambda m: stamp_to_ns(m.clock) * 1e-9),
+        odom=probe.record(Odometry, robot_topic(1, names.ODOM), SENSOR),
+        cmd=[probe.publisher(Twist, robot_topic(i, names.CMD_VEL), COMMAND) for i in range(n)],
+    )
+    return proc, bridge
+
+
+def set_bridge_parameter(probe: Probe, name: str, value) -> tuple[bool, str]:
+    (result,) = probe.set_parameters(BRIDGE, [Parameter(name, value=value)])
+    return result.successful, result.reason
+
+
+def test_bridge_publishes_the_scenario_and_follows_cmd_vel(spawn, probe):
+    scenario = load("linear").with_robots(4)
+    start_pos, start_head = scenario.initial_state(3)
+    proc, bridge = start_bridge(
+        spawn, probe, 4, "scenario:=linear", "num_robots:=4", "seed:=3", "cmd_timeout:=0.5"
+    )
+    probe.sample_poses(4)
+    probe.wait(
+        lambda: len(probe.times) >= 3 and len(bridge.odom) >= 2,
+        20.0,
+        "/swarm/poses and odom from the bridge",
+    )
+
+    # /clock advances with the poses' stamps; N poses = the seeded initial state
+    probe.wait(lambda: len(bridge.clock) >= 3, 5.0, "/clock")
+    assert bridge.clock[-1] > bridge.clock[0]
+    stamp, pos, head = probe.sample()
+    assert stamp > 0.0
+    np.testing.assert_allclose(pos, start_pos, atol=1e-12)
+    np.testing.assert_allclose(np.cos(head - start_head), 1.0, atol=1e-12)
+    odom = bridge.odom[-1]
+    assert odom.header.frame_id == "odom" and odom.child_frame_id == "mona_1/base_link"
+    assert odom.pose.pose.position.x == pytest.approx(start_pos[1, 0], abs=1e-12)
+    assert quaternion_to_yaw(odom.pose.pose.orientation) == pytest.approx(start_head[1])
+
+    # a non-finite command is dropped; a valid one drives robot 1 forward
+    bridge.send(1, math.nan, 0.0)
+    time.sleep(0.3)
+    t_end = time.monotonic() + 1.5
+    while time.monotonic() < t_end:
+        bridge.send(1, 0.1, 0.0)
+        time.sleep(0.05)
+    _, pos, head = probe.sample()
+    moved = pos - start_pos
+    heading = np.array([np.cos(start_head[1]), np.sin(start_head[1])])
+    assert moved[1] @ heading > 0.05  # forward, ~0.1 m/s for ~1.5 s
+    assert abs(moved[1] @ [-heading[1], heading[0]]) < 1e-9  # never sideways
+    assert head[1] == pytest.approx(start_head[1], abs=1e-9)
+    np.testing.assert_allclose(moved[[0, 2, 3]], 0.0, atol=1e-12)
+    assert bridge.odom[-1].twist.twist.linear.x == pytest.approx(0.1)
+
+    # silence: after cmd_timeout (0.5 s of sim time) robot 1 stops
+    time.sleep(1.5)
+    (t1, p1, _), (t2, p2, _) = probe.sample(-5), probe.sample(-1)
+    assert t2 > t1
+    np.testing.assert_array_equal(p1, p2)
+    assert bridge.odom[-1].twist.twist.linear.x == 0.0
+
+    assert spawn.stop(proc) == 0  # SIGINT: clean exit
+    assert "Traceback" not in spawn.logs()
+
+
+def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
+    _, bridge = start_bridge(
+        spawn, probe, 2,
+        "num_robots:=2", "seed:=5", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
+    )  # fmt: skip
+    answered: set[float] = set()
+    answer = {"robots": [0, 1]}
+    commands = {0: (0.1, 0.5), 1: (-0.05, -1.0)}
+
+    def reply(t: float, _pos: np.ndarray, _head: np.ndarray) -> None:
+        if t not in answered:
+            answered.add(t)
+            for i in answer["robots"]:
+                bridge.send(i, *commands[i])
+
+    probe.on_poses = reply
+    probe.sample_poses(2)
+    probe.wait(lambda: len(answered) >= 41, 30.0, "lockstep advancing 40 steps")
+    stamps = sorted(answered)
+    np.testing.assert_allclose(np.diff(stamps[:41]), 0.05, atol=1e-9)  # no step skipped
+
+    # the bridge integrated exactly the offline model with these commands
+    pos, head = load("combined").with_robots(2).initial_state(5)
+    u, turn = np.array([0.1, -0.05]), np.array([0.5, -1.0])
+    target = round(stamps[-1] / 0.05)
+    for _ in range(target):
+        pos, head = unicycle_step(pos, head, u, turn, 0.05)
+    k = next(k for k in reversed(range(len(probe.times))) if round(probe.times[k] / 0.05) == target)
+    _, got_pos, got_head = probe.sample(k)
+    np.testing.assert_allclose(got_pos, pos, atol=1e-9)
+    np.testing.assert_allclose(np.cos(got_head - head), 1.0, atol=1e-12)
+
+    # robot 1 falls silent: the bridge waits (re-publishing the same state)
+    answer["robots"] = [0]
+    time.sleep(0.5)
+    stuck = max(answered)
+    time.sleep(2.5)
+    assert max(answered) == stuck
+    assert probe.now == stuck
+    # robot 1 answers again: the bridge resumes
+    bridge.send(1, *commands[1])
+    answer["robots"] = [0, 1]
+    probe.wait(lambda: max(answered) >= stuck + 0.5, 10.0, "lockstep resuming")
+
+
+def test_reset_and_pause_services(spawn, probe):
+    proc, bridge = start_bridge(spawn, probe, 2, "num_robots:=2", "seed:=1", "cmd_timeout:=10.0")
+    probe.sample_poses(2)
+    start_pos, _ = load("combined").with_robots(2).initial_state(1)
+    probe.wait(lambda: len(probe.times) >= 2, 20.0, "/swarm/poses")
+    bridge.send(0, 0.1, 0.3)
+    time.sleep(1.0)
+    assert np.linalg.norm(probe.sample()[1][0] - start_pos[0]) > 0.05
+
+    # pause: the clock and the robots stop; resume: both go on
+    result = probe.call(SetBool, names.SIM_PAUSE, SetBool.Request(data=True), SERVICE_TIMEOUT)
+    assert result.success and result.message == "paused"
+    time.sleep(0.3)
+    clock, moved = bridge.clock[-1], probe.sample()[1]
+    time.sleep(1.0)
+    assert bridge.clock[-1] == clock
+    np.testing.assert_array_equal(probe.sample()[1], moved)
+    result = probe.call(SetBool, names.SIM_PAUSE, SetBool.Request(data=False), SERVICE_TIMEOUT)
+    assert result.success and result.message == "running"
+    probe.wait(lambda: bridge.clock[-1] > clock + 0.2, 5.0, "the clock going on")
+
+    # reset: back to the initial poses, every robot stopped, the clock goes on
+    t_before = bridge.clock[-1]
+    result = probe.call(Trigger, names.SIM_RESET, Trigger.Request(), SERVICE_TIMEOUT)
+    assert result.success
+    time.sleep(1.0)
+    stamp, pos, _ = probe.sample()
+    assert stamp > t_before
+    np.testing.assert_allclose(pos, start_pos, atol=1e-12)
+
+    proc.send_signal(signal.SIGTERM)  # also a clean exit
+    assert proc.wait(10.0) == 0
+
+
+def test_runtime_parameters_and_dynamic_mode(spawn, probe):
+    _, bridge = start_bridge(
+        spawn, probe, 2, "num_robots:=2", "seed:=2", "mode:=dynamic", "cmd_timeout:=10.0"
+    )
+    probe.sample_poses(2)
+    start_pos, start_head = load("combined").with_robots(2).initial_state(2)
+    probe.wait(lambda: len(probe.times) >= 2 and bridge.odom, 20.0, "/swarm/poses and odom")
+
+    # out of range: rejected with a reason, the bridge keeps its value and runs on
+    ok, reason = set_bridge_parameter(probe, "real_time_factor", -1.0)
+    assert not ok and "real_time_factor" in reason
+    ok, _ = set_bridge_parameter(probe, "mode", "kinematic")  # read-only
+    assert not ok
+    # twice real time: sim time runs ahead of the wall clock
+    assert set_bridge_parameter(probe, "real_time_factor", 2.0)[0]
+    wall, sim = time.monotonic(), bridge.clock[-1]
+    time.sleep(2.0)
+    assert bridge.clock[-1] - sim > 1.3 * (time.monotonic() - wall)
+
+    # dynamic mode: wheel motors drive robot 1 forward, robot 0 turns on the spot (CCW)
+    t_end = time.monotonic() + 1.0
+    while time.monotonic() < t_end:
+        bridge.send(0, 0.0, 1.0)
+        bridge.send(1, 0.1, 0.0)
+        time.sleep(0.05)
+    time.sleep(0.2)
+    _, pos, head = probe.sample()
+    heading = np.array([np.cos(start_head[1]), np.sin(start_head[1])])
+    assert (pos[1] - start_pos[1]) @ heading > 0.05
+    assert np.linalg.norm(pos[0] - start_pos[0]) < 0.01
+    assert np.sin(head[0] - start_head[0]) > 0.3
+    assert bridge.odom[-1].twist.twist.linear.x == pytest.approx(0.1, abs=0.02)
+
+
+def test_lockstep_bridge_with_the_control_law_equals_the_offline_simulator(spawn, probe):
+    """The test plays 4 noise-free robots with aes_ros.model.robot_command: 10 s in lockstep
+    end where the offline simulator ends from the same seed."""
+    scenario = load("combined").with_robots(4).with_overrides({"duration": 10.0})
+    _, bridge = start_bridge(
+        spawn, probe, 4,
+        "num_robots:=4", "seed:=7", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
+    )  # fmt: skip
+    _, neighbors, rest = scenario.sheet()
+    states: dict[int, np.ndarray] = {}
+
+    def control(t: float, pos: np.ndarray, head: np.ndarray) -> None:
+        step = round(t / scenario.dt)
+        if step in states:
+            return  # a re-published state was answered already
+        states[step] = pos
+        command = dataclasses.replace(scenario.command, center=tuple(pos.mean(axis=0)))
+        for i in range(4):
+            mine = neighbors[i] >= 0
+            out = robot_command(
+                pos[i],
+                head[i],
+                pos[neighbors[i][mine]],
+                rest[i][mine],
+                scenario.gains,
+                command,
+                scenario.dt,
+            )
+            bridge.send(i, out.linear, out.angular)
+
+    probe.on_poses = control
+    probe.sample_poses(4)
+    probe.wait(lambda: scenario.n_steps in states, 60.0, f"step {scenario.n_steps}")
+    offline = simulate(scenario, 7, noise=False).positions[0]
+    assert np.linalg.norm(offline[-1] - offline[0], axis=-1).min() > 0.3  # the swarm moved
+    # The contract is < 1 mm; the bridge integrates the very same Euler step, so
+    # (as measured) the positions agree to rounding.
+    np.testing.assert_allclose(states[scenario.n_steps], offline[-1], atol=1e-9)
+    np.testing.assert_allclose(states[100], offline[100], atol=1e-9)
