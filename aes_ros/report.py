@@ -33,7 +33,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from aes_ros import metrics, plots
+from aes_ros import metrics
 from aes_ros import scenario as scenario_mod
 from aes_ros.model import total_forces
 from aes_ros.scenario import Scenario
@@ -176,6 +176,9 @@ def write_run_outputs(
         np.savez_compressed(fh, times=times, positions=positions, headings=headings)
     table = metrics_table(times, positions, headings, scenario)
     write_metrics_csv(out_dir / "metrics.csv", table)
+    # matplotlib only here: importing it costs a launcher 25 MB and half a second at start.
+    from aes_ros import plots
+
     _, neighbors, _ = scenario.sheet()
     runs, n = positions.shape[0], positions.shape[2]
     title = f"{label}: N = {n}" + (f", run 0 of {runs}" if runs > 1 else "")
