@@ -1,35 +1,69 @@
-"""The lockstep barrier: a control step waits for a new command of every robot (pure)."""
+"""The lockstep barrier: a control step waits for every member to answer (pure).
+
+Members are the robots (their ``cmd_vel``) and, when a recording must be
+lossless, the recorder (its progress). A member silent for longer than
+``timeout`` wall seconds while the barrier waits for it leaves the barrier, so
+that one dead robot does not stall the swarm; it is back in as soon as it answers
+again. A member never heard from is waited for without a timeout (it may still
+be starting). With no fault every step waits for everyone: a run stays
+deterministic.
+"""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+#: Wall seconds a member may be silent before it leaves the barrier.
+DEFAULT_TIMEOUT = 2.0
 
 
 class LockstepBarrier:
-    """Which robots have answered the state published last.
+    """Which members have answered the state published last.
 
-    >>> barrier = LockstepBarrier(3)
-    >>> barrier.arrived(0); barrier.arrived(2)
+    >>> barrier = LockstepBarrier(3, timeout=2.0)
+    >>> barrier.arrived(0, now=0.0); barrier.arrived(2, now=0.0)
+    False
+    False
     >>> barrier.complete, barrier.missing().tolist()
     (False, [1])
     """
 
-    def __init__(self, n: int) -> None:
+    def __init__(self, n: int, timeout: float = DEFAULT_TIMEOUT) -> None:
+        self.timeout = timeout
         self._fresh = np.zeros(n, dtype=bool)
+        self._member = np.ones(n, dtype=bool)
+        self._heard = np.full(n, -math.inf)  # wall time [s] of each member's last answer
 
-    def arrived(self, robot_id: int) -> None:
-        """A new command of ``robot_id`` since the last step."""
-        self._fresh[robot_id] = True
+    def arrived(self, member: int, now: float) -> bool:
+        """``member`` answered at wall time ``now``; True if it was out and is back in."""
+        self._fresh[member] = True
+        self._heard[member] = now
+        if self._member[member]:
+            return False
+        self._member[member] = True
+        return True
 
     @property
     def complete(self) -> bool:
-        """Every robot has answered: the world may step."""
-        return bool(self._fresh.all())
+        """Every member has answered: the world may step."""
+        return bool(np.all(self._fresh | ~self._member))
 
     def missing(self) -> np.ndarray:
-        """Ids of the robots not yet heard from in this step."""
-        return np.flatnonzero(~self._fresh)
+        """Members not yet heard from in this step."""
+        return np.flatnonzero(~self._fresh & self._member)
+
+    def drop_silent(self, now: float) -> np.ndarray:
+        """Remove the members awaited but silent for longer than the timeout; their ids."""
+        silent = ~self._fresh & self._member & (now - self._heard > self.timeout)
+        silent &= np.isfinite(self._heard)  # never heard from: still starting
+        self._member[silent] = False
+        return np.flatnonzero(silent)
+
+    def is_member(self, member: int) -> bool:
+        return bool(self._member[member])
 
     def next_step(self) -> None:
-        """The world stepped (or was reset): wait for every robot again."""
+        """The world stepped (or was reset): wait for every member again."""
         self._fresh[:] = False

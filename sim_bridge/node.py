@@ -34,16 +34,21 @@ from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import PoseArrayEncoder
+from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import LATEST_COMMAND, SENSOR, STREAM_WRITER
+from aes_ros.ros.qos import LATCHED, LATEST_COMMAND, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
+from aes_ros.world_state import WorldState
 from sim_bridge.lockstep import LockstepBarrier
 from sim_bridge.loop_stats import ControlLoopStats
+from sim_bridge.parameters import declare_bridge_parameters
 from sim_bridge.world import World
 
 #: Wall-clock time [s] after which a lockstep bridge still waiting for commands
 #: publishes the same state again (a pose message may have been lost).
 REPUBLISH_AFTER = 1.0
+#: While a resumed bridge waits for the swarm, it publishes its state this often [s].
+RESUME_REPUBLISH = 0.2
 
 
 class SimBridgeNode(Node):
@@ -60,6 +65,13 @@ class SimBridgeNode(Node):
     seed : int, default 0
         Initial state = ``Scenario.initial_state(seed)``, the offline simulator's
         start with that seed. Read-only.
+    resume_from : str, default ""
+        A world state file (:class:`aes_ros.world_state.WorldState`: sim time,
+        positions, headings) to start from instead: a restarted bridge carries on
+        where the last one stopped, its clock too. It then publishes that state
+        until every robot has answered it (at most ``lockstep_timeout`` wall
+        seconds) before it steps on, so that no robot stands still while it
+        finds the new bridge. Read-only.
     mode : str, default "kinematic"
         ``kinematic`` (body follows cmd_vel exactly) or ``dynamic`` (wheel motors,
         friction, collisions). Read-only.
@@ -72,6 +84,14 @@ class SimBridgeNode(Node):
         Sim seconds per wall second; 0 = as fast as possible.
     lockstep : bool, default false
         Before each step wait for a new cmd_vel from every robot (deterministic).
+    lockstep_timeout : float [s of wall time], default 2.0
+        In lockstep, a robot silent for longer leaves the barrier (its body is
+        stopped, logged) until it answers again, so a dead robot does not stall
+        the swarm (:mod:`sim_bridge.lockstep`).
+    wait_for_recorder : bool, default false
+        In lockstep, also wait before each step until the recorder has written the
+        state published last (``/recorder/progress``): a lossless recording at any
+        load.
     cmd_timeout : float [s of sim time], default 0.5
         A robot whose last command is older stops.
     clip : bool, default true
@@ -91,7 +111,7 @@ class SimBridgeNode(Node):
         super().__init__(names.SIM_BRIDGE_NODE, **kwargs)
         self._warn = ThrottledWarnings(self.get_logger())
         scenario = rp.declare_scenario(self)
-        self._declare_parameters()
+        declare_bridge_parameters(self)
         get = self.get_parameter
         self.scenario = scenario
         positions, headings = scenario.initial_state(get("seed").value)
@@ -113,10 +133,19 @@ class SimBridgeNode(Node):
                 limits=self.limits if get("clip").value else None,
                 gui=get("gui").value,
             )
+            if get("resume_from").value:
+                state = WorldState.load(get("resume_from").value, self.n)
+                self.world.restore(state.positions, state.headings, round(state.t / self.dt))
         except (ValueError, RuntimeError) as exc:  # a world that cannot be built
             raise ParameterError(str(exc)) from None
         self.paused = False
-        self.barrier = LockstepBarrier(self.n)
+        #: Wall time since when a resumed bridge waits for the swarm (None: not waiting).
+        self.resuming_since = time.monotonic() if get("resume_from").value else None
+        # Members 0..n-1 are the robots; member n the recorder, with wait_for_recorder.
+        self.recorder_member = self.n if get("wait_for_recorder").value else None
+        self.barrier = LockstepBarrier(
+            self.n + (self.recorder_member is not None), get("lockstep_timeout").value
+        )
         self.waiting = False  # lockstep at full speed: step timer parked until all arrived
         self.steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.last_publish = time.monotonic()
@@ -148,6 +177,10 @@ class SimBridgeNode(Node):
             )
             for i in range(self.n)
         ]
+        if self.recorder_member is not None:
+            self.create_subscription(
+                ClockMsg, names.RECORDER_PROGRESS, self.on_recorder_progress, LATCHED
+            )
         self.create_service(Trigger, names.SIM_RESET, self.on_reset)
         self.create_service(SetBool, names.SIM_PAUSE, self.on_pause)
         self.create_service(Trigger, names.SIM_STATS, self.on_stats)
@@ -164,87 +197,12 @@ class SimBridgeNode(Node):
                 f"{scenario.dt:g} s; robots should use dt = {self.dt:g} s"
             )
         self.get_logger().info(
-            f"{self.n} robots, {self.world.mode} mode, {self.rate:g} Hz control, "
-            f"{self.world.substeps} physics steps per period, lockstep={self.lockstep}, "
-            f"real_time_factor={self.real_time_factor:g}"
+            f"{names.BRIDGE_READY} {self.n} robots, {self.world.mode} mode, {self.rate:g} Hz "
+            f"control, {self.world.substeps} physics steps per period, lockstep={self.lockstep}"
+            f", real_time_factor={self.real_time_factor:g}, t={self.world.time:g} s"
         )
 
     # --- set-up ----------------------------------------------------------------
-    def _declare_parameters(self) -> None:
-        """The bridge's parameters (``scenario`` and ``num_robots`` are declared by
-        :func:`aes_ros.ros.parameters.declare_scenario`, as in every node)."""
-        self.declare_parameter(
-            "seed",
-            0,
-            rp.int_descriptor(
-                "seed of the initial state (Scenario.initial_state; read at start)",
-                0,
-                2**31 - 1,
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            "mode",
-            "kinematic",
-            rp.text_descriptor(
-                "kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors, friction "
-                "and collisions (read at start)",
-                names.MODES,
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            "physics_rate",
-            240.0,
-            rp.float_descriptor(
-                "pybullet step rate in dynamic mode", "Hz", 1.0, 10000.0, read_only=True
-            ),
-        )
-        self.declare_parameter(
-            "publish_rate",
-            20.0,
-            rp.float_descriptor(
-                "control rate: world steps, /clock, poses and odom",
-                "Hz",
-                0.1,
-                1000.0,
-                read_only=True,
-            ),
-        )
-        self.declare_parameter(
-            "real_time_factor",
-            1.0,
-            rp.float_descriptor(
-                "sim seconds per wall second; 0 = as fast as possible", "", 0.0, 1000.0
-            ),
-        )
-        self.declare_parameter(
-            "lockstep", False, rp.bool_descriptor("wait for every robot's cmd_vel before each step")
-        )
-        self.declare_parameter(
-            "cmd_timeout",
-            0.5,
-            rp.float_descriptor(
-                "a robot whose last cmd_vel is older stops (sim time)", "s", 0.0, 1e6
-            ),
-        )
-        self.declare_parameter(
-            "clip",
-            True,
-            rp.bool_descriptor(
-                "clip commands to the scenario's max_linear_speed and max_angular_speed"
-            ),
-        )
-        self.declare_parameter(
-            "gui",
-            False,
-            rp.bool_descriptor("open the pybullet GUI (read at start)", read_only=True),
-        )
-        mode = self.get_parameter("mode").value
-        reason = rp.choice_error("mode", mode, names.MODES)
-        if reason is not None:
-            raise ParameterError(reason)
-
     def _build_messages(self) -> None:
         """Messages reused every step: only their numbers change.
 
@@ -281,10 +239,35 @@ class SimBridgeNode(Node):
             self._warn(f"dropped a non-finite cmd_vel: robot {robot_id}")
             return
         self.world.set_command(robot_id, u, turn)
-        self.stats.command(robot_id, time.monotonic() - self.publish_wall)
-        self.barrier.arrived(robot_id)
+        now = time.monotonic()
+        self.stats.command(robot_id, now - self.publish_wall)
+        self._arrived(robot_id, now, f"robot {robot_id}")
+
+    def on_recorder_progress(self, msg: ClockMsg) -> None:
+        """The recorder has written the poses up to its stamp: it answered this step
+        if that is the state published last."""
+        if stamp_to_ns(msg.clock) >= stamp_to_ns(self.stamp):
+            self._arrived(self.recorder_member, time.monotonic(), "the recorder")
+
+    def _arrived(self, member: int, now: float, who: str) -> None:
+        if self.barrier.arrived(member, now) and self.lockstep:
+            self.get_logger().info(f"lockstep: {who} answered again: back in the barrier")
         if self.waiting and self.barrier.complete:
             self._restart_stepping()
+
+    def _drop_silent(self) -> None:
+        """Lockstep: members silent for longer than lockstep_timeout leave the barrier;
+        a robot that leaves is stopped."""
+        for member in self.barrier.drop_silent(time.monotonic()).tolist():
+            if member == self.recorder_member:
+                who = "the recorder"
+            else:
+                who = f"robot {member}"
+                self.world.stop(member)
+            self.get_logger().warning(
+                f"lockstep: {who} silent for {self.barrier.timeout:g} s at t={self.world.time:g}"
+                f" s: left the barrier{'' if member == self.recorder_member else ', stopped'}"
+            )
 
     def _restart_stepping(self) -> None:
         """(Re)start the step timer unless paused; :meth:`on_step` parks it again if need be."""
@@ -294,8 +277,10 @@ class SimBridgeNode(Node):
 
     def on_step(self) -> None:
         """Timer: one control step of the world, then publish the new state."""
-        if self.paused:
+        if self.paused or not self._resumed():
             return
+        if self.lockstep and not self.barrier.complete:
+            self._drop_silent()
         if self.lockstep and not self.barrier.complete:
             if self.real_time_factor == 0.0:
                 # Park the busy timer; on_cmd_vel restarts it when the last command is in.
@@ -305,6 +290,25 @@ class SimBridgeNode(Node):
         self.barrier.next_step()
         self.world.step()
         self.publish_state()
+
+    def _resumed(self) -> bool:
+        """A resumed bridge steps on once every robot answered its state, or after
+        lockstep_timeout; until then it publishes the state again now and then."""
+        if self.resuming_since is None:
+            return True
+        now = time.monotonic()
+        waited = now - self.resuming_since
+        if self.barrier.complete or waited > self.barrier.timeout:
+            missing = len(self.barrier.missing())
+            how = (
+                "every robot answered" if not missing else f"{missing} silent after {waited:.1f} s"
+            )
+            self.get_logger().info(f"resumed at t={self.world.time:g} s: {how}")
+            self.resuming_since = None
+            return True
+        if now - self.last_publish > RESUME_REPUBLISH:
+            self.publish_state()
+        return False
 
     def _update_odom_listeners(self) -> None:
         """Robots whose odometry has a subscriber (checked 4x per wall second, not per step)."""
@@ -318,12 +322,16 @@ class SimBridgeNode(Node):
         self._update_odom_listeners()
         if not self.lockstep or self.paused or self.barrier.complete:
             return
+        self._drop_silent()
+        if self.barrier.complete:
+            self._restart_stepping()
+            return
         waited = time.monotonic() - self.last_publish
         if waited > REPUBLISH_AFTER:
             missing = self.barrier.missing()
             self.get_logger().info(
-                f"lockstep: re-publishing t={self.world.time:g} s; no command yet from "
-                f"{len(missing)} robots (first: {missing[:5].tolist()})",
+                f"lockstep: re-publishing t={self.world.time:g} s; no answer yet from "
+                f"{len(missing)} members (first: {missing[:5].tolist()})",
                 throttle_duration_sec=5.0,
             )
             self.publish_state()
@@ -359,7 +367,8 @@ class SimBridgeNode(Node):
         return response
 
     def on_parameters_set(self, params: list[Parameter]) -> None:
-        """Apply runtime changes of real_time_factor, lockstep, cmd_timeout and clip."""
+        """Apply runtime changes of real_time_factor, lockstep, lockstep_timeout,
+        cmd_timeout and clip."""
         for p in params:
             if p.name == "real_time_factor":
                 self.real_time_factor = p.value
@@ -368,6 +377,8 @@ class SimBridgeNode(Node):
             elif p.name == "lockstep":
                 self.lockstep = p.value
                 self._restart_stepping()
+            elif p.name == "lockstep_timeout":
+                self.barrier.timeout = p.value
             elif p.name == "cmd_timeout":
                 self.world.cmd_timeout = p.value
             elif p.name == "clip":

@@ -324,6 +324,16 @@ class World:
         self._place(self._positions, self._headings)
         self._bodies_stale = False
 
+    def restore(self, positions: np.ndarray, headings: np.ndarray, step_count: int) -> None:
+        """Continue from a saved state: the robots at these poses, at rest, and the sim
+        time at ``step_count`` control periods (a restarted bridge resuming a run)."""
+        self.reset(positions, headings)
+        self.step_count = int(step_count)
+
+    def stop(self, i: int) -> None:
+        """Forget robot ``i``'s command: it stands still until it sends a new one."""
+        self.command_step[i] = np.iinfo(np.int64).min // 2
+
     def close(self) -> None:
         """Disconnect from pybullet (idempotent)."""
         if self._client is not None and pb.isConnected(self._client):

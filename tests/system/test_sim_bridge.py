@@ -115,9 +115,10 @@ def test_bridge_publishes_the_scenario_and_follows_cmd_vel(spawn, probe):
 
 
 def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
-    _, bridge = start_bridge(
+    proc, bridge = start_bridge(
         spawn, probe, 2,
         "num_robots:=2", "seed:=5", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
+        "lockstep_timeout:=1.0",
     )  # fmt: skip
     answered: set[float] = set()
     answer = {"robots": [0, 1]}
@@ -146,17 +147,32 @@ def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
     np.testing.assert_allclose(got_pos, pos, atol=1e-9)
     np.testing.assert_allclose(np.cos(got_head - head), 1.0, atol=1e-12)
 
-    # robot 1 falls silent: the bridge waits (re-publishing the same state)
+    # robot 1 falls silent: the bridge waits lockstep_timeout (1 s of wall time since its
+    # last answer), then goes on without it and stops its body
     answer["robots"] = [0]
-    time.sleep(0.5)
+    silent_since = time.monotonic()
     stuck = max(answered)
-    time.sleep(2.5)
-    assert max(answered) == stuck
-    assert probe.now == stuck
-    # robot 1 answers again: the bridge resumes
+    probe.wait(lambda: max(answered) > stuck + 0.5, 10.0, "lockstep going on without robot 1")
+    assert time.monotonic() - silent_since > 0.8  # it was waited for first
+    left = round(stuck / 0.05)
+    later = [k for k in range(len(probe.times)) if round(probe.times[k] / 0.05) > left + 12]
+    assert later, "too few steps without robot 1"
+    _, pos_a, _ = probe.sample(later[0])
+    _, pos_b, _ = probe.sample(later[-1])
+    assert np.linalg.norm(pos_b[1] - pos_a[1]) < 1e-12  # robot 1 stands still
+    assert np.linalg.norm(pos_b[0] - pos_a[0]) > 1e-3  # robot 0 goes on
+    assert "robot 1 silent for 1 s" in spawn.log(proc).read_text()
+    # robot 1 answers again: back in the barrier, so the bridge waits for it again
     bridge.send(1, *commands[1])
     answer["robots"] = [0, 1]
-    probe.wait(lambda: max(answered) >= stuck + 0.5, 10.0, "lockstep resuming")
+    resumed = max(answered)
+    probe.wait(lambda: max(answered) >= resumed + 0.5, 10.0, "lockstep with robot 1 again")
+    answer["robots"] = [0]
+    time.sleep(0.3)
+    waiting = max(answered)
+    time.sleep(0.5)  # shorter than the timeout: the bridge waits for robot 1
+    assert max(answered) == waiting
+    assert "robot 1 answered again: back in the barrier" in spawn.log(proc).read_text()
 
 
 def test_reset_and_pause_services(spawn, probe):

@@ -9,16 +9,42 @@ from sim_bridge.loop_stats import ControlLoopStats
 
 
 def test_barrier_opens_only_when_every_robot_answered() -> None:
-    barrier = LockstepBarrier(3)
+    barrier = LockstepBarrier(3, timeout=2.0)
     assert not barrier.complete and barrier.missing().tolist() == [0, 1, 2]
-    barrier.arrived(2)
-    barrier.arrived(2)  # a second command of the same robot does not count twice
-    barrier.arrived(0)
+    barrier.arrived(2, now=0.0)
+    barrier.arrived(2, now=0.1)  # a second command of the same robot does not count twice
+    barrier.arrived(0, now=0.1)
     assert not barrier.complete and barrier.missing().tolist() == [1]
-    barrier.arrived(1)
+    barrier.arrived(1, now=0.2)
     assert barrier.complete
     barrier.next_step()
     assert not barrier.complete and barrier.missing().tolist() == [0, 1, 2]
+
+
+def test_a_silent_member_leaves_the_barrier_and_rejoins_when_it_answers() -> None:
+    barrier = LockstepBarrier(3, timeout=2.0)
+    for member in range(3):
+        barrier.arrived(member, now=0.0)
+    barrier.next_step()
+    barrier.arrived(0, now=0.5)
+    barrier.arrived(2, now=0.5)
+    assert barrier.drop_silent(now=1.9).tolist() == []  # not yet 2 s
+    assert barrier.drop_silent(now=2.1).tolist() == [1]  # robot 1: last heard at 0.0
+    assert barrier.complete and not barrier.is_member(1)
+    barrier.next_step()
+    barrier.arrived(0, now=2.2)
+    barrier.arrived(2, now=2.2)
+    assert barrier.complete  # the step goes on without robot 1
+    barrier.next_step()
+    assert barrier.arrived(1, now=3.0)  # it speaks again: back in at once
+    assert barrier.is_member(1) and barrier.missing().tolist() == [0, 2]
+
+
+def test_a_member_never_heard_from_is_waited_for() -> None:
+    barrier = LockstepBarrier(2, timeout=0.1)
+    barrier.arrived(0, now=0.0)
+    assert barrier.drop_silent(now=100.0).tolist() == []  # robot 1 may still be starting
+    assert not barrier.complete
 
 
 def test_loop_stats_give_rates_latencies_and_real_time_factor() -> None:
