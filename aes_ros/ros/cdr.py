@@ -68,6 +68,14 @@ class PoseArrayEncoder:
         return bytes(self._buf)
 
 
+def decode_stamp(data: bytes) -> tuple[int, int]:
+    """(sec, nanosec) of a raw message that starts with a ``std_msgs/Header`` (its stamp
+    is the first field), e.g. ``/swarm/poses``; BadMessageError if too short."""
+    if len(data) < _HEADER + 8 or data[0] != 0 or data[1] not in (0, 1):
+        raise BadMessageError("not a CDR message with a header")
+    return struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, _HEADER)
+
+
 def decode_pose_array(
     data: bytes, expected: int | None = None
 ) -> tuple[int, int, np.ndarray, np.ndarray]:

@@ -13,6 +13,16 @@ with SIGKILL leaves a bag without summary that :func:`aes_ros.ros.bag.read_bag`
 still reads up to its last complete chunk (:func:`aes_ros.ros.bag.bag_is_closed`
 tells the two apart).
 
+Nothing is lost silently. Each message is stored with its publisher's send time
+and sequence number, so gaps in a topic's numbers are messages that did not reach
+the recorder: counted per topic (:class:`aes_ros.ros.bag.SequenceGaps`), written
+into the bag's ``aes_swarm.recording`` metadata and printed at the end. After
+each ``/swarm/poses`` it has written it publishes ``/recorder/progress`` (its
+stamp): a lockstep bridge with ``wait_for_recorder`` waits for it before the next
+step, so a recording in lockstep is complete at any load. A bag it cannot write
+(disk full) ends the recorder with exit code 3 and a message; what was written
+stays readable.
+
 Run on its own (it stops and closes the bag on Ctrl-C / SIGTERM)::
 
     python -m aes_ros.ros.recorder run.mcap --robots 16
@@ -21,6 +31,8 @@ Run on its own (it stops and closes the bag on Ctrl-C / SIGTERM)::
 from __future__ import annotations
 
 import argparse
+import contextlib
+import functools
 import re
 import sys
 from collections.abc import Iterable
@@ -28,13 +40,16 @@ from pathlib import Path
 from typing import Any
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import BagWriter
+from aes_ros.ros.bag import RECORDING_METADATA, BagWriter, SequenceGaps, last_sequences
+from aes_ros.ros.cdr import decode_stamp
+from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, LATCHED, STREAM_WRITER
 from aes_ros.ros.spin import spin
 
@@ -59,6 +74,10 @@ QUEUE_DEPTH = 100
 FLUSH_PERIOD = 1.0
 
 
+class CannotWriteError(RuntimeError):
+    """The bag cannot be written (disk full, file system gone): recording stops."""
+
+
 def _subscriber_qos(infos: Iterable) -> QoSProfile:
     """A QoS matching every publisher of a topic (as rosbag2 adapts its subscriptions)."""
     infos = list(infos)
@@ -80,25 +99,37 @@ class RecorderNode(Node):
 
     Parameters (constructor): ``bag`` the writer, ``num_robots`` N (subscribes
     ``/mona_<i>/cmd_vel`` for i < N at once; others are found by discovery),
-    ``discover`` look for further matching topics once a second.
+    ``discover`` look for further matching topics once a second, ``after`` the last
+    sequence numbers of the segments before this one (a restarted recorder counts
+    what was lost while none ran).
+
+    Spin it on a ``SingleThreadedExecutor``: its callbacks take the message info
+    (send time, sequence number), which rclpy's EventsExecutor does not pass.
     """
 
     def __init__(
-        self, bag: BagWriter, num_robots: int = 0, discover: bool = True, **kwargs: Any
+        self,
+        bag: BagWriter,
+        num_robots: int = 0,
+        discover: bool = True,
+        after: dict[str, tuple[int, int]] | None = None,
+        **kwargs: Any,
     ) -> None:
         super().__init__(names.RECORDER_NODE, **kwargs)
         self.bag = bag
+        self.gaps = SequenceGaps(after)
         self._subs: dict[str, object] = {}
         self._heard: set[str] = set()
+        self._progress = self.create_publisher(Clock, names.RECORDER_PROGRESS, LATCHED)
+        self._progress_msg = Clock()
         for topic, (type_name, qos) in KNOWN_TOPICS.items():
             self._subscribe(topic, type_name, _with_depth(qos))
         for i in range(num_robots):
             self._subscribe(
                 names.robot_topic(i, names.CMD_VEL), CMD_VEL_TYPE, _with_depth(COMMAND_KEPT)
             )
-        if discover:
-            self.create_timer(1.0, self.on_discover)
-        self.create_timer(FLUSH_PERIOD, self.bag.flush)
+        self.create_timer(1.0, lambda: self.on_discover(discover))
+        self.create_timer(FLUSH_PERIOD, self.on_flush)
         # The robots' and the supervisor's topics (the latched ones are the supervisor's).
         self._awaited = [names.robot_topic(i, names.CMD_VEL) for i in range(num_robots)] + [
             topic for topic, (_, qos) in KNOWN_TOPICS.items() if qos is LATCHED
@@ -109,22 +140,40 @@ class RecorderNode(Node):
         pkg, _, name = type_name.partition("/msg/")
         msg_type = getattr(__import__(f"{pkg}.msg", fromlist=[name]), name)
         self.bag.add_topic(topic, type_name)
-        self._subs[topic] = self.create_subscription(
-            msg_type, topic, lambda data, t=topic: self.on_message(t, data), qos, raw=True
-        )
+        # Two arguments: rclpy then passes the message info too.
+        callback = functools.partial(self.on_message, topic)
+        self._subs[topic] = self.create_subscription(msg_type, topic, callback, qos, raw=True)
 
-    def on_message(self, topic: str, data: bytes) -> None:
-        self.bag.write(topic, data)
+    def on_message(self, topic: str, data: bytes, info: dict[str, Any] | None) -> None:
+        """Write one message; count the messages before it that never arrived."""
+        sequence = info.get("publication_sequence_number") if info else None
+        sent = info.get("source_timestamp") if info else None
+        try:
+            self.bag.write(topic, data, publish_time_ns=sent, sequence=sequence)
+        except OSError as exc:
+            raise CannotWriteError(f"cannot write {self.bag.path}: {exc.strerror or exc}") from None
+        self.gaps.seen(topic, sequence, sent)
+        if topic == names.POSES:
+            with contextlib.suppress(BadMessageError):
+                stamp = self._progress_msg.clock
+                stamp.sec, stamp.nanosec = decode_stamp(data)
+                self._progress.publish(self._progress_msg)
         if topic not in self._heard:
             self._heard.add(topic)
             # The launcher waits for this line before it starts the robots.
-            print(names.recorder_receiving(topic), flush=True)
+            say(names.recorder_receiving(topic))
+
+    def on_flush(self) -> None:
+        try:
+            self.bag.flush()
+        except OSError as exc:
+            raise CannotWriteError(f"cannot write {self.bag.path}: {exc.strerror or exc}") from None
 
     def on_check_matched(self) -> None:
         """Say RECORDER_MATCHED_ALL once the robots and the supervisor are all found."""
         self._awaited = [t for t in self._awaited if self._subs[t].get_publisher_count() == 0]
         if not self._awaited:
-            print(names.RECORDER_MATCHED_ALL, flush=True)
+            say(names.RECORDER_MATCHED_ALL)
             self._match_timer.cancel()
 
     def take_remaining(self) -> int:
@@ -144,11 +193,18 @@ class RecorderNode(Node):
                     msg_info = sub.handle.take_message(sub.msg_type, sub.raw)
                 if msg_info is None:
                     break
-                self.on_message(topic, msg_info[0])
+                self.on_message(topic, msg_info[0], msg_info[1])
                 taken += 1
         return taken
 
-    def on_discover(self) -> None:
+    def on_discover(self, discover: bool) -> None:
+        """Once a second: subscribe to new matching topics (``discover``), and mark
+        topics with several publishers, whose losses cannot be counted."""
+        for topic, sub in self._subs.items():
+            if sub is not None:
+                self.gaps.publishers(topic, sub.get_publisher_count())
+        if not discover:
+            return
         for topic, types in self.get_topic_names_and_types():
             if topic in self._subs or not RECORDED.match(topic) or len(types) != 1:
                 continue
@@ -160,6 +216,34 @@ class RecorderNode(Node):
             except (ImportError, AttributeError, FileNotFoundError) as exc:
                 self.get_logger().warning(f"not recording {topic}: {exc}")
                 self._subs[topic] = None
+
+    def summary(self) -> dict[str, str]:
+        """Recorded and lost messages per topic (the bag's recording metadata)."""
+        out = {"lost_total": str(self.gaps.total())}
+        for topic, count in sorted(self.bag.counts.items()):
+            if topic in self.gaps.uncountable:
+                lost = "not counted (several publishers)"
+            else:
+                lost = str(self.gaps.lost.get(topic, 0))
+            out[topic] = f"recorded {count}, lost {lost}"
+        return out
+
+    def summary_line(self) -> str:
+        """``N messages on T topics, L lost`` (with the topics that lost any)."""
+        total = sum(self.bag.counts.values())
+        lost = self.gaps.total()
+        which = ", ".join(f"{t} {n}" for t, n in sorted(self.gaps.lost.items()) if n)
+        return (
+            f"bag {self.bag.path}: {total} messages on {len(self.bag.counts)} topics, "
+            f"{lost} lost" + (f" ({which})" if which else "")
+        )
+
+
+def say(text: str) -> None:
+    """A line on standard output (the launcher reads it), unless that cannot be written:
+    with the log on a full disk the recorder must not die of its own messages."""
+    with contextlib.suppress(OSError):
+        print(text, flush=True)
 
 
 def _with_depth(qos: QoSProfile) -> QoSProfile:
@@ -176,7 +260,10 @@ def _with_depth(qos: QoSProfile) -> QoSProfile:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m aes_ros.ros.recorder OUT.mcap [--robots N] [--ros-args ...]``."""
+    """``python -m aes_ros.ros.recorder OUT.mcap [--robots N] [--ros-args ...]``.
+
+    Exit code 0 after SIGINT/SIGTERM (bag closed), 3 when the bag cannot be written.
+    """
     argv = sys.argv[1:] if argv is None else argv
     cut = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
     parser = argparse.ArgumentParser(
@@ -184,28 +271,43 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("output", type=Path, help="the MCAP file to write")
     parser.add_argument("--robots", type=int, default=0, help="subscribe cmd_vel of N robots")
+    parser.add_argument(
+        "--after", type=Path, nargs="*", default=[],
+        help="the earlier segments of this recording: count what was lost between them",
+    )  # fmt: skip
     args = parser.parse_args(argv[:cut])
     # SIGINT/SIGTERM end spin(); what the readers still hold is written, then the
     # bag is closed.
     rclpy.init(args=["recorder", *argv[cut:]], signal_handler_options=SignalHandlerOptions.NO)
-    bag = BagWriter(args.output)
     node = None
+    code = 0
     try:
-        node = RecorderNode(bag, args.robots)
-        print(f"{names.RECORDER_STARTED} {args.output}", flush=True)
-        spin([node])
+        bag = BagWriter(args.output)
+    except OSError as exc:
+        say(f"recording stopped: cannot write {args.output}: {exc.strerror or exc}")
+        rclpy.try_shutdown()
+        return names.RECORDER_CANNOT_WRITE
+    try:
+        node = RecorderNode(bag, args.robots, after=last_sequences(args.after))
+        say(f"{names.RECORDER_STARTED} {args.output}")
+        spin([node], SingleThreadedExecutor())
         drained = node.take_remaining()
-        print(f"stopped; {drained} messages taken from the queues after the stop", flush=True)
+        say(f"stopped; {drained} messages taken from the queues after the stop")
+    except CannotWriteError as exc:
+        say(f"recording stopped: {exc}; the bag holds what was written before")
+        code = names.RECORDER_CANNOT_WRITE
     except ExternalShutdownException:
         pass
     finally:
-        bag.close()
-        total = sum(bag.counts.values())
-        print(f"bag {args.output}: {total} messages on {len(bag.counts)} topics", flush=True)
+        with contextlib.suppress(OSError):
+            if node is not None:
+                bag.add_metadata(RECORDING_METADATA, node.summary())
+            bag.close()
         if node is not None:
+            say(node.summary_line())
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return code
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 import rclpy
 from rclpy.duration import Duration
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.experimental import EventsExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
@@ -47,8 +47,9 @@ STARTUP_ERRORS = (
 FLUSH_POLL_NS = 2_000_000
 
 
-def spin(nodes: list[Node]) -> str:
-    """Spin ``nodes`` on one EventsExecutor until SIGINT or SIGTERM (or rclpy shuts down).
+def spin(nodes: list[Node], executor: Executor | None = None) -> str:
+    """Spin ``nodes`` on one EventsExecutor (or ``executor``) until SIGINT or SIGTERM (or
+    rclpy shuts down).
 
     Must run in the main thread. Before returning it waits (at most
     FLUSH_TIMEOUT s in all) until the reliable readers of every publisher have
@@ -64,7 +65,7 @@ def spin(nodes: list[Node]) -> str:
         stop.set()
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    executor = EventsExecutor()
+    executor = EventsExecutor() if executor is None else executor
     for node in nodes:
         executor.add_node(node)
     try:
