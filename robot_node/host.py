@@ -108,7 +108,8 @@ class RobotHostNode(Node):
             self._share_clock(robot)
             self.robots.append(robot)
         self.get_logger().info(
-            f"{len(self.robots)} robots ({ids[0]}…{ids[-1]}), neighbour source {source}"
+            f"{names.ROBOTS_READY} {len(self.robots)} robots ({ids[0]}…{ids[-1]}), "
+            f"neighbour source {source}"
         )
 
     def _share_clock(self, robot: RobotNode) -> None:

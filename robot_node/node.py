@@ -129,10 +129,13 @@ class RobotNode(Node):
         self._odom_sub = None
         self._neighbor_subs: dict[int, Any] = {}
         self._alive_subs: dict[int, Any] = {}
-        self._inputs = inputs if inputs is not None else SwarmInputs(self)
+        alone = inputs is None
+        self._inputs = SwarmInputs(self) if alone else inputs
         self._local_version = -1
         self._sync_subscriptions()
         self._inputs.add(self)
+        if alone:
+            self.get_logger().info(f"{names.ROBOTS_READY} robot {self.robot_id}")
 
     @property
     def robot_id(self) -> int:

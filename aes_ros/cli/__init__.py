@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
+    "report": "rebuild a launch's trajectory, metrics, plots and summary from what is on disk",
 }
 
 #: Longer descriptions shown by ``aes-swarm <command> --help``.
@@ -42,6 +43,9 @@ DESCRIPTIONS: dict[str, str] = {
     "processes, wait until every robot moves, run for --duration seconds of sim time "
     "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
     "snapshots.png and metrics.png to --out.",
+    "report": "Write trajectory.npz, metrics.csv, snapshots.png and metrics.png of a run "
+    "directory from the trajectory parts that aes-swarm launch streams while it runs, e.g. "
+    "after the launcher was killed.",
     "steer": "Publish one geometry_msgs/Twist on /swarm/cmd (linear.x/y = desired "
     "direction, angular.z = rotation rate ω, counter-clockwise positive) and wait until "
     "the supervisor echoes it on /swarm/desired_velocity. A value not given keeps the "

@@ -21,6 +21,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
+from aes_ros.ros.launch.plan import ON_FAILURE
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -61,6 +62,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--real-time-factor", type=number_type(float, 0), default=1.0,
         metavar="X", help="sim speed relative to wall time (0: as fast as possible; default 1)",
     )  # fmt: skip
+    p.add_argument(
+        "--on-failure", choices=ON_FAILURE, default="respawn",
+        help="a process that dies during the run: restart it (default; the bridge from the "
+        "last world state, the recorder into a new bag segment), continue without it, or "
+        "stop the run; every fault goes to OUT/events.csv",
+    )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -84,6 +91,7 @@ def run(args: argparse.Namespace) -> int:
         lockstep=args.lockstep,
         real_time_factor=args.real_time_factor,
         clip=bool(sc.clip) if "clip" in overrides else None,
+        on_failure=args.on_failure,
     )
     try:
         result = launch(config, say=lambda line: print(line, flush=True))
@@ -98,4 +106,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"launch: ran {span:.1f} s of sim time in {result.wall_time:.1f} s wall")
     if args.record is not None:
         print(f"bag: {args.record}")
+    if result.failure is not None:
+        print(f"aes-swarm launch: error: {result.failure}", file=sys.stderr)
+        return 1
     return 0

@@ -52,6 +52,10 @@ ALIGNMENT = "/swarm/alignment"
 HEADING_ORDER = "/swarm/heading_order"
 TOTAL_FORCE = "/swarm/total_force"
 
+#: The recorder's progress: the stamp of the latest ``/swarm/poses`` it has written
+#: (rosgraph_msgs/Clock). A lockstep bridge with ``wait_for_recorder`` waits for it.
+RECORDER_PROGRESS = "/recorder/progress"
+
 # --- services ----------------------------------------------------------------------------
 
 ENABLE = "/swarm/enable"
@@ -86,10 +90,19 @@ CENTER_MODES = ("centroid", "fixed")
 
 #: The supervisor, at its first valid /swarm/poses.
 SUPERVISOR_RECEIVING_POSES = f"receiving {POSES}"
+#: The bridge, once its world is built and its first state published.
+BRIDGE_READY = "bridge ready:"
+#: A robot host or a robot node, once its robot nodes exist.
+ROBOTS_READY = "robots ready:"
 #: The recorder, once its bag is open.
 RECORDER_STARTED = "recording to"
 #: The recorder, once every robot's cmd_vel and every supervisor topic has a publisher.
 RECORDER_MATCHED_ALL = "found the publishers of every robot and of the supervisor"
+
+
+#: Exit code of a recorder that stopped because it could not write (disk full):
+#: restarting it would fail again.
+RECORDER_CANNOT_WRITE = 3
 
 
 def recorder_receiving(topic: str) -> str:

@@ -71,6 +71,36 @@ def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 
 
 def processes_in_domain(domain: str) -> list[str]:
     """Command lines of live processes (other than this one) with this ROS_DOMAIN_ID."""
+    return [cmdline for _, cmdline in _domain_processes(domain)]
+
+
+def find_process(domain: str, needle: str) -> int:
+    """The pid of the one live process of the domain whose command line holds ``needle``."""
+    found = [pid for pid, cmdline in _domain_processes(domain) if needle in cmdline]
+    assert len(found) == 1, f"{len(found)} processes match {needle!r}"
+    return found[0]
+
+
+def shm_files() -> set[str]:
+    """Fast DDS's shared-memory files (/dev/shm)."""
+    return {p.name for p in Path("/dev/shm").glob("*fastrtps*")}
+
+
+def abandoned_shm(before: set[str]) -> set[str]:
+    """Fast DDS shared-memory files made since ``before`` that no live process maps:
+    what processes that are gone left behind (a file the test's own probe still maps,
+    as a peer of a dead process, is not abandoned yet)."""
+    mapped: set[str] = set()
+    for maps in Path("/proc").glob("[0-9]*/maps"):
+        try:
+            mapped.update(line.rsplit("/", 1)[-1] for line in maps.read_text().splitlines()
+                          if "/dev/shm/" in line)  # fmt: skip
+        except OSError:
+            continue
+    return {name for name in shm_files() - before if name not in mapped}
+
+
+def _domain_processes(domain: str) -> list[tuple[int, str]]:
     found = []
     needle = f"ROS_DOMAIN_ID={domain}".encode()
     for entry in Path("/proc").iterdir():
@@ -82,7 +112,8 @@ def processes_in_domain(domain: str) -> list[str]:
             stat = (entry / "stat").read_text()
             if stat.rsplit(")", 1)[1].split()[0] == "Z":
                 continue
-            found.append((entry / "cmdline").read_bytes().replace(b"\0", b" ").decode())
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
+            found.append((int(entry.name), cmdline))
         except OSError:
             continue
     return found

@@ -14,17 +14,25 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    has found every robot's and the supervisor's publishers;
 3. watches ``/swarm/poses`` (:mod:`aes_ros.ros.launch.monitor`) until every robot
    has moved, then runs for ``duration`` seconds of sim time (0 = until
-   SIGINT/SIGTERM);
+   SIGINT/SIGTERM), streaming ``metrics.csv`` and the trajectory to ``out_dir``
+   as it goes (:mod:`aes_ros.run_writer`, flushed every wall second) and handling
+   processes that die as ``on_failure`` says (:mod:`aes_ros.ros.launch.supervision`;
+   every fault and recovery in ``events.csv``);
 4. stops every process (SIGINT to its group, SIGKILL after ``stop_timeout``), the
    recorder last so that the bag is complete and closed, and cleans Fast DDS
    shared memory left by killed processes;
 5. writes ``trajectory.npz``, ``metrics.csv``, ``snapshots.png`` and ``metrics.png``
-   with :func:`aes_ros.report.write_run_outputs` from the poses sampled over the
-   run (times are sim times [s]; the first sample is the last one before every
-   robot had moved).
+   (:func:`aes_ros.report.write_run_outputs`; times are sim times [s]; the first
+   sample is the last one before every robot had moved).
 
-SIGINT or SIGTERM to the launcher ends the run early the same way (processes
-stopped, bag closed, outputs written from what was sampled).
+Before it starts anything it checks (:mod:`aes_ros.ros.launch.preflight`) that the
+outputs can be written and have room, and that no other swarm is active in this
+ROS domain. SIGINT or SIGTERM to the launcher ends the run early the same way
+(processes stopped, bag closed, outputs written from what was sampled). If the
+launcher itself is killed, its children get SIGTERM from the kernel, a reaper
+process (:mod:`aes_ros.ros.launch.reaper`) removes Fast DDS's shared memory, and
+the outputs on disk hold everything up to the last flush (``aes-swarm report DIR``
+writes the rest).
 
 Example::
 
@@ -38,8 +46,10 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import threading
@@ -51,21 +61,30 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import metrics
-from aes_ros.report import write_run_outputs
 from aes_ros.ros import interface as names
+from aes_ros.ros.bag import segment_path
+from aes_ros.ros.launch import preflight
+from aes_ros.ros.launch.events import Event, EventLog
 from aes_ros.ros.launch.monitor import TIME_EPS, Monitor
 from aes_ros.ros.launch.plan import (
     LaunchConfig,
     LaunchError,
+    ProcessSpec,
     node_commands,
     recorder_command,
+    ros_value,
     write_robot_params,
     write_scenario,
 )
-from aes_ros.ros.launch.processes import Child, ProcessSet
+from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
+from aes_ros.ros.launch.supervision import Supervision
+from aes_ros.run_writer import RunWriter
+from aes_ros.world_state import WorldState
 
 #: A robot has moved once its position changed by more than this [m] or its heading [rad].
 MOVE_EPS = 1e-6
+#: Wall seconds of discovery before deciding that no other swarm is in the domain.
+DISCOVERY_WAIT = 1.0
 
 
 @dataclass
@@ -78,6 +97,9 @@ class LaunchResult:
     summary : the one-line summary of write_run_outputs ("" when nothing was written).
     killed : processes that had to be SIGKILLed at the end.
     exit_codes : every process's exit code (0 = clean shutdown).
+    failure : why the run did not complete, or its outputs are incomplete (None: it
+        completed, faults recovered on the way included).
+    events : every fault and recovery (``events.csv``).
     """
 
     times: np.ndarray
@@ -89,6 +111,8 @@ class LaunchResult:
     summary: str = ""
     killed: list[str] = field(default_factory=list)
     exit_codes: dict[str, int] = field(default_factory=dict)
+    failure: str | None = None
+    events: list[Event] = field(default_factory=list)
 
 
 class Launcher:
@@ -111,16 +135,29 @@ class Launcher:
         else:
             self.work_dir = Path(tempfile.mkdtemp(prefix="aes-launch-"))
         self.work_dir.mkdir(parents=True, exist_ok=True)
-        self.procs = ProcessSet(self.work_dir / "logs")
+        logs = self.work_dir / "logs"
+        logs.mkdir(exist_ok=True)
+        self.procs = ProcessSet(logs, fastdds_environment(dict(os.environ)), pid_file=logs / "pids")
         self.recorder: Child | None = None
         self.monitor: Monitor | None = None
+        self.events: EventLog | None = None
+        self.supervision: Supervision | None = None
+        self.writer: RunWriter | None = None
         self.stop_reason: str | None = None
+        #: Why the run could not go on, or why its outputs are incomplete.
+        self.failure: str | None = None
         self.t_go: float | None = None
         self.go_index = 0
         self._wall_start = time.monotonic()
         self._stopped = False
         self.killed: list[str] = []
         self.exit_codes: dict[str, int] = {}
+        self._specs: dict[str, ProcessSpec] = {}
+        self._segments = 0
+        self._streamed = 0
+        self._t_end = math.inf
+        self._reaper_pipe: int | None = None
+        self._checked_at = 0.0
 
     @property
     def wall_time(self) -> float:
@@ -153,17 +190,24 @@ class Launcher:
     # -- steps ---------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Write the parameter files and start every process (see the module docstring)."""
+        """Check, write the parameter files and start every process (module docstring)."""
         cfg = self.config
         n = cfg.num_robots
+        for warning in preflight.check_outputs(cfg):
+            self.say(f"launch: warning: {warning}")
         scenario_file = write_scenario(cfg.scenario, self.work_dir / "scenario.yaml")
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
+        self.events = EventLog(self.work_dir / "events.csv", self.say)
+        self._start_reaper()
         self.monitor = Monitor(n)
+        self._refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
+        self._specs = {spec.name: spec for spec in (bridge_spec, supervisor_spec, *robot_specs)}
         if cfg.record is not None:
             record = Path(cfg.record).resolve()
-            self.recorder = self.procs.start(*recorder_command(record, n, sys.executable))
+            self._specs["recorder"] = recorder_command(record, n, sys.executable)
+            self.recorder = self.procs.start(*self._specs["recorder"])
             self._wait_signal(self.recorder, names.RECORDER_STARTED, 30.0)
-        bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
         bridge = self.procs.start(*bridge_spec)
         if cfg.lockstep or self.recorder is not None:
             # The bridge and the supervisor first: the robots start only once the
@@ -193,18 +237,86 @@ class Launcher:
             for spec in (supervisor_spec, *robot_specs):
                 self.procs.start(*spec)
             self._wait_first_poses(bridge)
+        self.supervision = Supervision(
+            self.procs, self.events, cfg.on_failure, self._command_for, self._sim_time
+        )
         hosts = len(robot_specs)
         self.say(
             f"launch: {n} robots, layout {cfg.layout} ({hosts} robot process"
             f"{'es' if hosts != 1 else ''}), neighbours from {cfg.neighbor_source}, "
             f"{cfg.mode} mode{', lockstep' if cfg.lockstep else ''}, "
-            f"real-time factor {cfg.real_time_factor:g}; logs in {self.procs.log_dir}"
+            f"real-time factor {cfg.real_time_factor:g}, on failure {cfg.on_failure}; "
+            f"logs in {self.procs.log_dir}"
         )
+
+    @staticmethod
+    def _refuse_other_swarm(others: list[str]) -> None:
+        if others:
+            domain = os.environ.get("ROS_DOMAIN_ID", "0")
+            raise LaunchError(
+                f"another swarm is active in ROS_DOMAIN_ID={domain}: {', '.join(others[:6])}"
+                f"{' …' if len(others) > 6 else ''}; stop it, or start this one with another "
+                "ROS_DOMAIN_ID"
+            )
+
+    def _check_start(self) -> None:
+        """While starting: a second swarm that discovery shows only now (a process
+        announces itself every 3 s unless it uses this launch's Fast DDS profile)."""
+        now = time.monotonic()
+        if now - self._checked_at > 0.5:
+            self._checked_at = now
+            self._refuse_other_swarm(self.monitor.second_swarm())
+
+    def _start_reaper(self) -> None:
+        """The reaper waits on a pipe only this process writes to (it never does): when
+        the launcher is gone, however it died, the reaper cleans up after it."""
+        read_end, self._reaper_pipe = os.pipe()
+        with open(self.procs.log_dir / "reaper.log", "a") as log:
+            subprocess.Popen(
+                [sys.executable, "-m", "aes_ros.ros.launch.reaper", str(self.procs.pid_file)],
+                stdin=read_end,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                start_new_session=True,
+            )
+        os.close(read_end)
+
+    def _sim_time(self) -> float | None:
+        mon = self.monitor
+        return mon.times[-1] if mon is not None and mon.times else None
+
+    def _command_for(self, name: str) -> list[str]:
+        """How to restart process ``name``: the bridge from the last sampled world
+        state, the recorder into the next bag segment, the supervisor with the last
+        swarm command; any other process as it was started."""
+        if name == "recorder":
+            record = Path(self.config.record).resolve()
+            earlier = [segment_path(record, k) for k in range(self._segments + 1)]
+            self._segments += 1
+            bag = segment_path(record, self._segments)
+            n = self.config.num_robots
+            return recorder_command(bag, n, sys.executable, [p for p in earlier if p.exists()]).argv
+        argv = list(self._specs[name].argv)
+        mon = self.monitor
+        if name == names.SIM_BRIDGE_NODE and mon.times:
+            state = WorldState(mon.times[-1], mon.positions[-1], mon.headings[-1])
+            path = state.save(self.procs.log_dir / "world_state.npz")
+            argv += ["-p", f"resume_from:={path}"]
+        if name == names.SUPERVISOR_NODE and mon.desired is not None:
+            twist = mon.desired.twist
+            argv += [
+                "-p", f"desired_direction:={ros_value([twist.linear.x, twist.linear.y])}",
+                "-p", f"rotation_rate:={ros_value(twist.angular.z)}",
+            ]  # fmt: skip
+        if name == names.SUPERVISOR_NODE and mon.enabled is not None:
+            argv += ["-p", f"enabled:={ros_value(mon.enabled)}"]
+        return argv
 
     def _wait_first_poses(self, bridge: Child) -> None:
         deadline = time.monotonic() + self.config.start_timeout
         while not self.monitor.times and self.stop_reason is None:
             self.monitor.spin_once(0.05)
+            self._check_start()
             if bridge.proc.poll() is not None:
                 raise LaunchError(
                     f"sim_bridge exited with code {bridge.proc.returncode}:\n{bridge.tail()}"
@@ -238,11 +350,34 @@ class Launcher:
             )
 
     def spin_for(self, seconds: float) -> None:
-        """Keep sampling (and checking the processes) for ``seconds`` of wall time."""
+        """Keep sampling (and looking after the processes) for ``seconds`` of wall time."""
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             self.monitor.spin_once(0.05)
-            self.check_children()
+            self._supervise()
+
+    def _supervise(self) -> None:
+        """Apply ``on_failure`` to processes that died; stream new samples to disk."""
+        if self.supervision is not None:
+            self.supervision.check()
+        self._stream()
+
+    def _stream(self) -> None:
+        """Hand the samples taken since the last call to the output writer."""
+        mon, writer = self.monitor, self.writer
+        if writer is None:
+            return
+        while self._streamed < len(mon.times) and mon.times[self._streamed] <= self._t_end:
+            k = self._streamed
+            writer.add(mon.times[k], mon.positions[k], mon.headings[k])
+            self._streamed += 1
+        if writer.error is not None and self.failure is None:
+            self.failure = f"the outputs are incomplete: {writer.error}"
+            self.events.record(
+                "launcher", "cannot write the outputs", action="the swarm runs on; "
+                f"{self.config.out_dir} holds what was written up to sim time "
+                f"{writer.t_written or 0.0:.2f} s", sim_time=self._sim_time(),
+            )  # fmt: skip
 
     def wait_until_moving(self) -> float:
         """Block until every robot has moved from its first sampled pose.
@@ -259,6 +394,7 @@ class Launcher:
         while self.stop_reason is None:
             mon.spin_once(0.05)
             self.check_children()
+            self._check_start()
             while checked < len(mon.times):
                 p0, h0 = mon.positions[0], mon.headings[0]
                 dp = np.linalg.norm(mon.positions[checked] - p0, axis=-1)
@@ -270,6 +406,7 @@ class Launcher:
                 if moved.all():
                     self.go_index = last_unmoved
                     self.t_go = mon.times[last_unmoved]
+                    self._begin_outputs()
                     self.say(
                         f"launch: all {mon.n} robots moving at sim time "
                         f"{mon.times[checked - 1]:.2f} s (wall {self.wall_time:.1f} s)"
@@ -284,6 +421,15 @@ class Launcher:
         self.t_go = mon.times[last_unmoved] if mon.times else 0.0
         return self.t_go
 
+    def _begin_outputs(self) -> None:
+        """From the run's start on, samples go to disk as they come."""
+        cfg = self.config
+        self._streamed = self.go_index
+        duration = cfg.run_time
+        self._t_end = self.t_go + duration + TIME_EPS if duration > 0 else math.inf
+        if cfg.out_dir is not None:
+            self.writer = RunWriter(Path(cfg.out_dir), cfg.scenario, cfg.label)
+
     def run(self, duration: float | None = None) -> None:
         """Sample poses until ``duration`` s of sim time after the start (0: until stopped)."""
         mon = self.monitor
@@ -294,7 +440,7 @@ class Launcher:
         last_count, last_new = len(mon.times), time.monotonic()
         while self.stop_reason is None:
             mon.spin_once(0.05)
-            self.check_children()
+            self._supervise()
             if len(mon.times) != last_count:
                 last_count, last_new = len(mon.times), time.monotonic()
             elif time.monotonic() - last_new > self.config.stall_timeout:
@@ -324,13 +470,18 @@ class Launcher:
         if self._stopped:
             return self.killed
         self._stopped = True
-        last = [self.recorder] if self.recorder is not None else []
+        last = [c for c in self.procs.children if c.name == "recorder"]
         self.killed = self.procs.stop_all(self.config.stop_timeout, last=last)
         if self.monitor is not None:
             self.monitor.close()
+        if self._reaper_pipe is not None:
+            os.close(self._reaper_pipe)  # the reaper finds nothing left and exits
+            self._reaper_pipe = None
         if self.recorder is not None:
-            lines = self.recorder.tail(300).strip().splitlines()
+            lines = last[-1].tail(300).strip().splitlines()
             self.say(f"launch: {lines[-1] if lines else 'recorder wrote nothing'}")
+        # The last instance of each process: those that died and were restarted had
+        # their say in events.csv.
         self.exit_codes = {c.name: c.proc.returncode for c in self.procs.children}
         unclean = {k: v for k, v in self.exit_codes.items() if v != 0 and k not in self.killed}
         if unclean:
@@ -366,8 +517,10 @@ class Launcher:
 def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchResult:
     """Start, wait until every robot moves, run ``duration`` s of sim time, stop, write outputs.
 
-    Raises LaunchError when the system does not start or a process dies; every
-    process is stopped in any case.
+    Raises LaunchError when the system does not start (nothing is written then).
+    Once it runs, a fault it cannot recover from ends the run early instead: the
+    outputs are written from what was sampled and :attr:`LaunchResult.failure`
+    says why. Every process is stopped in any case.
     """
     launcher = Launcher(config, say)
     ok = False
@@ -375,25 +528,50 @@ def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchRe
         try:
             launcher.start()
             launcher.wait_until_moving()
-            launcher.run()
+            try:
+                launcher.run()
+            except LaunchError as exc:  # a fault the run cannot get over
+                launcher.failure = str(exc)
+                say(f"launch: the run cannot go on: {exc}")
             ok = True
         finally:
             killed = launcher.stop()
             if killed:
                 say(f"launch: had to SIGKILL {', '.join(killed)}")
-            launcher.cleanup(ok and not killed and not any(launcher.exit_codes.values()))
-    t_end = None if config.run_time == 0 else launcher.t_go + config.run_time
-    times, pos, head = launcher.samples(t_end)
+            launcher.cleanup(ok and launcher.failure is None and not killed)
+    times, pos, head = launcher.samples(None if config.run_time == 0 else launcher._t_end)
+    events = launcher.events.events if launcher.events is not None else []
     result = LaunchResult(
         times, pos, head, float(launcher.t_go), launcher.wall_time,
         stopped_by=launcher.stop_reason, killed=killed, exit_codes=launcher.exit_codes,
+        failure=launcher.failure, events=events,
     )  # fmt: skip
     if launcher.stop_reason is not None:
         t_last = times[-1] if len(times) else 0.0
         say(f"launch: stopped by {launcher.stop_reason} at sim time {t_last:.2f} s")
-    if config.out_dir is not None and len(times) >= 2:
-        result.summary = write_run_outputs(
-            Path(config.out_dir), times, pos[None], head[None], config.scenario,
-            label=config.label,
-        )  # fmt: skip
+    if launcher.writer is not None:
+        result.summary = launcher.writer.finish()
+        if launcher.writer.error is not None and result.failure is None:
+            result.failure = f"the outputs are incomplete: {launcher.writer.error}"
+    if launcher.supervision is not None:
+        say(f"launch: {fault_summary(events, launcher.supervision.given_up)}")
+    if launcher.events is not None:
+        launcher.events.close()
     return result
+
+
+def fault_summary(events: list[Event], given_up: list[str]) -> str:
+    """One line: how many processes died, were restarted and recovered, were given up."""
+    died = [e for e in events if e.event in ("died", "cannot write the bag")]
+    if not died:
+        return "no faults"
+    recovered = [e for e in events if e.event == "recovered"]
+    per_process: dict[str, int] = {}
+    for e in died:
+        per_process[e.process] = per_process.get(e.process, 0) + 1
+    listed = ", ".join(f"{name} {n}×" for name, n in per_process.items())
+    gave_up = f", given up: {', '.join(given_up)}" if given_up else ""
+    return (
+        f"{len(died)} fault{'s' if len(died) != 1 else ''} ({listed}), "
+        f"{len(recovered)} recovered{gave_up}; details in events.csv"
+    )

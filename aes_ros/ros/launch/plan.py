@@ -25,6 +25,9 @@ from aes_ros.ros import interface as names
 from aes_ros.ros.parameters import LIMIT_NAMES
 from aes_ros.scenario import Scenario
 
+#: What ``--on-failure`` may ask for (:mod:`aes_ros.ros.launch.supervision`).
+ON_FAILURE = ("respawn", "continue", "stop")
+
 
 class LaunchError(RuntimeError):
     """The system did not start, or a process died during the run."""
@@ -43,6 +46,11 @@ class LaunchConfig:
         its robot_id (None: ``seed``).
     work_dir : where scenario.yaml, robots.yaml and logs/ go (default: out_dir,
         else a temporary directory removed after a successful run).
+    on_failure : what to do when a process dies during the run: ``respawn`` it,
+        ``continue`` without it, or ``stop`` the run
+        (:mod:`aes_ros.ros.launch.supervision`).
+    lockstep_timeout : wall seconds after which a silent robot (or recorder) leaves
+        the lockstep barrier (:mod:`sim_bridge.lockstep`).
     """
 
     scenario: Scenario
@@ -65,6 +73,8 @@ class LaunchConfig:
     stop_timeout: float = 10.0
     work_dir: Path | None = None
     progress_every: float = 5.0
+    on_failure: str = "respawn"
+    lockstep_timeout: float = 2.0
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -78,6 +88,12 @@ class LaunchConfig:
                 _one_of(names.NEIGHBOR_SOURCES),
             ),
             ("mode", self.mode in names.MODES, _one_of(names.MODES)),
+            ("on_failure", self.on_failure in ON_FAILURE, _one_of(ON_FAILURE)),
+            (
+                "lockstep_timeout",
+                math.isfinite(self.lockstep_timeout) and self.lockstep_timeout > 0,
+                "need a number > 0",
+            ),
             (
                 "duration",
                 self.duration is None or (math.isfinite(self.duration) and self.duration >= 0),
@@ -222,6 +238,10 @@ def bridge_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
         "lockstep": bool(config.lockstep),
         "gui": bool(config.gui),
     }
+    if config.lockstep:
+        params["lockstep_timeout"] = float(config.lockstep_timeout)
+        # A recording in lockstep is lossless: the bridge waits for the recorder too.
+        params["wait_for_recorder"] = config.record is not None
     if config.clip is not None:
         params["clip"] = bool(config.clip)
     params.update(config.bridge_params)
@@ -288,8 +308,12 @@ def node_commands(
     ]
 
 
-def recorder_command(bag: Path, num_robots: int, python: str) -> ProcessSpec:
-    """The MCAP recorder (:mod:`aes_ros.ros.recorder`) run by ``python``."""
-    return ProcessSpec(
-        "recorder", [python, "-m", "aes_ros.ros.recorder", str(bag), "--robots", str(num_robots)]
-    )
+def recorder_command(
+    bag: Path, num_robots: int, python: str, after: list[Path] | None = None
+) -> ProcessSpec:
+    """The MCAP recorder (:mod:`aes_ros.ros.recorder`) run by ``python``; ``after``: the
+    earlier segments of the recording (a restarted recorder)."""
+    argv = [python, "-m", "aes_ros.ros.recorder", str(bag), "--robots", str(num_robots)]
+    if after:
+        argv += ["--after", *map(str, after)]
+    return ProcessSpec("recorder", argv)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -54,13 +55,20 @@ class Child:
 
 class ProcessSet:
     """Child processes, each in its own session/process group, logging to
-    ``log_dir/<name>.log`` (appended to, so a restarted process keeps one log)."""
+    ``log_dir/<name>.log`` (appended to, so a restarted process keeps one log).
 
-    def __init__(self, log_dir: Path, env: dict[str, str] | None = None) -> None:
+    With ``pid_file`` the pids of the live children are kept in that file (one per
+    line, rewritten at every start) for :mod:`aes_ros.ros.launch.reaper`.
+    """
+
+    def __init__(
+        self, log_dir: Path, env: dict[str, str] | None = None, pid_file: Path | None = None
+    ) -> None:
         self.log_dir = Path(log_dir)
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.env = {**os.environ, **(env or {}), "PYTHONUNBUFFERED": "1"}
         self.children: list[Child] = []
+        self.pid_file = pid_file
 
     def start(self, name: str, cmd: Sequence[str]) -> Child:
         """Start ``cmd`` (``cmd[0]`` a console script name or a path) as ``name``."""
@@ -78,6 +86,11 @@ class ProcessSet:
             )
         child = Child(name, argv, proc, log)
         self.children.append(child)
+        if self.pid_file is not None:
+            live = [str(c.proc.pid) for c in self.children if c.proc.poll() is None]
+            temporary = self.pid_file.with_name("." + self.pid_file.name + ".tmp")
+            temporary.write_text("\n".join(live) + "\n")
+            os.replace(temporary, self.pid_file)
         return child
 
     def dead(self) -> list[Child]:
@@ -105,10 +118,11 @@ class ProcessSet:
         return killed
 
     def stop_all(self, timeout: float, last: Sequence[Child] = ()) -> list[str]:
-        """Stop every child; those in ``last`` only after all others have exited."""
+        """Stop every child; those in ``last`` only after all others have exited; then
+        remove the shared-memory files they left (in their ROS domain)."""
         first = [c for c in self.children if c not in last]
         killed = self.stop(first, timeout) + self.stop(list(last), timeout)
-        clean_shared_memory()
+        clean_shared_memory(ros_domain(self.env))
         return killed
 
 
@@ -122,11 +136,74 @@ def _die_with_parent() -> None:
         ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
-def clean_shared_memory() -> None:
-    """``fastdds shm clean``: remove Fast DDS segments whose processes are gone."""
-    try:
+#: The Fast DDS profile of the processes a launch starts (faster rediscovery).
+FASTDDS_PROFILE = Path(__file__).resolve().parents[1] / "fastdds_profile.xml"
+PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def fastdds_environment(env: dict[str, str]) -> dict[str, str]:
+    """``env`` with :data:`FASTDDS_PROFILE` as the default profile, unless it names one."""
+    if any(env.get(name) for name in PROFILE_VARIABLES):
+        return dict(env)
+    return {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(FASTDDS_PROFILE)}
+
+
+#: Where Fast DDS keeps its shared-memory files (Linux).
+SHM_DIR = Path("/dev/shm")
+_PORT_FILE = re.compile(r"(?:sem\.)?fastrtps_port(\d+)(?:_el|_sl|_mutex)?")
+
+
+def ros_domain(env: dict[str, str]) -> int:
+    """The ROS domain id of an environment (0 when unset or not a number)."""
+    value = env.get("ROS_DOMAIN_ID", "0")
+    return int(value) if value.isdigit() else 0
+
+
+def leftover_ports(domain: int) -> list[Path]:
+    """Fast DDS shared-memory port files of ``domain`` that no live process has mapped
+    (the port, its lock files and its semaphore).
+
+    A port is a file per listening locator (DDS port 7400 + 250 · domain + offset).
+    Its listener removes it when it shuts down, but not while another process still
+    maps it, and then nobody does: processes that stop together (or are killed)
+    leave port files behind, which ``fastdds shm clean`` does not recognise (they
+    have no lock file any more). Only ports of ``domain`` are considered (other
+    domains belong to other swarms and test runs), and those below the first
+    domain's (7400), which every participant of the machine shares.
+    """
+    low = 7400 + 250 * domain
+
+    def ours(port: int) -> bool:
+        return port < 7400 or low <= port < low + 250
+
+    files = [
+        path
+        for path in SHM_DIR.glob("*fastrtps_port*")
+        if (m := _PORT_FILE.fullmatch(path.name)) and ours(int(m.group(1)))
+    ]
+    if not files:
+        return []
+    mapped: set[str] = set()
+    for maps in Path("/proc").glob("[0-9]*/maps"):
+        try:
+            text = maps.read_text()
+        except OSError:  # gone, or not ours to read
+            continue
+        mapped.update(
+            line.rsplit(None, 1)[-1] for line in text.splitlines() if "fastrtps_port" in line
+        )
+    return [path for path in files if str(path) not in mapped]
+
+
+def clean_shared_memory(domain: int | None = None) -> None:
+    """Remove Fast DDS shared-memory files whose processes are gone: ``fastdds shm
+    clean`` (segments), and with ``domain`` the port files of that ROS domain that no
+    live process maps (:func:`leftover_ports`)."""
+    with contextlib.suppress(LaunchError, OSError, subprocess.SubprocessError):
         tool = executable("fastdds")
-    except LaunchError:
-        return
-    with contextlib.suppress(OSError, subprocess.SubprocessError):
         subprocess.run([tool, "shm", "clean"], capture_output=True, timeout=30, check=False)
+    if domain is None:
+        return
+    for path in leftover_ports(domain):
+        with contextlib.suppress(OSError):
+            path.unlink()

@@ -13,9 +13,6 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 
-#: What ``--on-failure`` may ask for.
-ON_FAILURE = ("respawn", "continue", "stop")
-
 
 @dataclass(frozen=True)
 class Backoff:

@@ -1,0 +1,78 @@
+"""Checks before a launch starts anything: can its outputs be written, and is there
+room for them (pure: files and disk space; the domain check is the monitor's)."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
+
+#: Bytes per sample per robot of the trajectory: 3 float64 in the parts, again in
+#: trajectory.npz (compressed, but no smaller than half of that in practice).
+TRAJECTORY_BYTES = 3 * 8 * 2
+#: Bytes per metrics.csv row.
+METRICS_ROW_BYTES = 90
+#: Bag bytes per control step: per robot its pose in /swarm/poses (56) and a
+#: cmd_vel record (about 100 with the MCAP record and index); plus /clock and the
+#: supervisor's topics. An upper bound: the chunks are zstd-compressed.
+BAG_BYTES_PER_ROBOT = 160
+BAG_BYTES_PER_STEP = 600
+#: Sim seconds assumed for a run without a set duration (``--duration 0``).
+OPEN_ENDED_S = 600.0
+
+
+def check_writable(directory: Path, what: str) -> None:
+    """Create ``directory`` and a file in it; LaunchError naming ``what`` if it cannot."""
+    try:
+        Path(directory).mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=directory, prefix=".aes-write-test-"):
+            pass
+    except OSError as exc:
+        raise LaunchError(f"{what}: cannot write to {directory} ({exc.strerror or exc})") from None
+
+
+def expected_bytes(config: LaunchConfig) -> dict[str, int]:
+    """Rough upper bounds of the bytes a launch writes: ``outputs`` (into out_dir) and
+    ``bag`` (the recording), for its duration (10 minutes when open-ended)."""
+    seconds = config.run_time if config.run_time > 0 else OPEN_ENDED_S
+    steps = seconds / float(config.scenario.dt)
+    n = config.num_robots
+    outputs = steps * (n * TRAJECTORY_BYTES + METRICS_ROW_BYTES) + 2_000_000  # + plots, logs
+    bag = steps * (n * BAG_BYTES_PER_ROBOT + BAG_BYTES_PER_STEP) if config.record else 0
+    return {"outputs": int(outputs), "bag": int(bag)}
+
+
+def room_warnings(config: LaunchConfig) -> list[str]:
+    """Warnings for file systems with less free space than the run is expected to need."""
+    need = expected_bytes(config)
+    places: dict[int, list] = {}  # device -> [free bytes, needed bytes, paths]
+    targets = []
+    if config.out_dir is not None:
+        targets.append(("outputs", Path(config.out_dir)))
+    if config.record is not None:
+        targets.append(("bag", Path(config.record).parent))
+    for kind, path in targets:
+        device = os.stat(path).st_dev
+        entry = places.setdefault(device, [shutil.disk_usage(path).free, 0, []])
+        entry[1] += need[kind]
+        entry[2].append(str(path))
+    horizon = "" if config.run_time > 0 else f" per {OPEN_ENDED_S / 60:g} minutes"
+    return [
+        f"{' and '.join(paths)}: {free / 1e6:.0f} MB free, the run may need about "
+        f"{needed / 1e6:.0f} MB{horizon}; outputs stop with an error when the disk is full"
+        for free, needed, paths in places.values()
+        if free < needed
+    ]
+
+
+def check_outputs(config: LaunchConfig) -> list[str]:
+    """LaunchError if the output directory or the bag's directory cannot be written;
+    warnings where the free space looks short."""
+    if config.out_dir is not None:
+        check_writable(Path(config.out_dir), "--out")
+    if config.record is not None:
+        check_writable(Path(config.record).resolve().parent, "--record")
+    return room_warnings(config)
