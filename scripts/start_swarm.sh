@@ -55,6 +55,14 @@ if [ ! -x "$BIN/aes-sim-bridge" ]; then
     exit 1
 fi
 
+# The Fast DDS profile aes-swarm launch uses (participants announce themselves every
+# 0.5 s, so a restarted process finds the others quickly), unless one is set.
+if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE:-}${FASTDDS_DEFAULT_PROFILES_FILE:-}" ]; then
+    FASTRTPS_DEFAULT_PROFILES_FILE=$("$BIN/python" -c \
+        "from aes_ros.ros.launch.processes import FASTDDS_PROFILE; print(FASTDDS_PROFILE)")
+    export FASTRTPS_DEFAULT_PROFILES_FILE
+fi
+
 # The robot count as the scenario sees it (0 = the scenario's own formation).
 if [ "$ROBOTS" -eq 0 ]; then
     ROBOTS=$("$BIN/python" -c "from aes_ros import scenario; \

@@ -111,6 +111,23 @@ class EventLog:
             self._fd = None
 
 
+def fault_summary(events: list[Event], given_up: list[str]) -> str:
+    """One line: how many processes died, were restarted and recovered, were given up."""
+    died = [e for e in events if e.event in ("died", "cannot write the bag")]
+    if not died:
+        return "no faults"
+    recovered = [e for e in events if e.event == "recovered"]
+    per_process: dict[str, int] = {}
+    for e in died:
+        per_process[e.process] = per_process.get(e.process, 0) + 1
+    listed = ", ".join(f"{name} {n}×" for name, n in per_process.items())
+    gave_up = f", given up: {', '.join(given_up)}" if given_up else ""
+    return (
+        f"{len(died)} fault{'s' if len(died) != 1 else ''} ({listed}), "
+        f"{len(recovered)} recovered{gave_up}; details in events.csv"
+    )
+
+
 def read_events(path: Path) -> list[dict[str, str]]:
     """The rows of an ``events.csv``."""
     with open(path, newline="") as fh:

@@ -49,7 +49,6 @@ import math
 import os
 import shutil
 import signal
-import subprocess
 import sys
 import tempfile
 import threading
@@ -62,9 +61,8 @@ import numpy as np
 
 from aes_ros import metrics
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import segment_path
 from aes_ros.ros.launch import preflight
-from aes_ros.ros.launch.events import Event, EventLog
+from aes_ros.ros.launch.events import Event, EventLog, fault_summary
 from aes_ros.ros.launch.monitor import TIME_EPS, Monitor
 from aes_ros.ros.launch.plan import (
     LaunchConfig,
@@ -72,19 +70,23 @@ from aes_ros.ros.launch.plan import (
     ProcessSpec,
     node_commands,
     recorder_command,
-    ros_value,
     write_robot_params,
     write_scenario,
 )
 from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
+from aes_ros.ros.launch.reaper import start_reaper
+from aes_ros.ros.launch.recovery import RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.run_writer import RunWriter
-from aes_ros.world_state import WorldState
 
 #: A robot has moved once its position changed by more than this [m] or its heading [rad].
 MOVE_EPS = 1e-6
 #: Wall seconds of discovery before deciding that no other swarm is in the domain.
 DISCOVERY_WAIT = 1.0
+#: Wall seconds from the start during which the launcher keeps looking for another
+#: swarm: a participant without this launch's Fast DDS profile announces itself only
+#: every 3 s, and its answer to a newcomer can go astray.
+OTHER_SWARM_WINDOW = 6.0
 
 
 @dataclass
@@ -153,7 +155,6 @@ class Launcher:
         self.killed: list[str] = []
         self.exit_codes: dict[str, int] = {}
         self._specs: dict[str, ProcessSpec] = {}
-        self._segments = 0
         self._streamed = 0
         self._t_end = math.inf
         self._reaper_pipe: int | None = None
@@ -198,9 +199,9 @@ class Launcher:
         scenario_file = write_scenario(cfg.scenario, self.work_dir / "scenario.yaml")
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
         self.events = EventLog(self.work_dir / "events.csv", self.say)
-        self._start_reaper()
+        self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
         self.monitor = Monitor(n)
-        self._refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
         bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
         self._specs = {spec.name: spec for spec in (bridge_spec, supervisor_spec, *robot_specs)}
         if cfg.record is not None:
@@ -237,8 +238,11 @@ class Launcher:
             for spec in (supervisor_spec, *robot_specs):
                 self.procs.start(*spec)
             self._wait_first_poses(bridge)
+        restart = RestartCommands(
+            self._specs, self.monitor, self.procs.log_dir / "world_state.npz", cfg.record, n
+        )
         self.supervision = Supervision(
-            self.procs, self.events, cfg.on_failure, self._command_for, self._sim_time
+            self.procs, self.events, cfg.on_failure, restart, self._sim_time
         )
         hosts = len(robot_specs)
         self.say(
@@ -249,68 +253,20 @@ class Launcher:
             f"logs in {self.procs.log_dir}"
         )
 
-    @staticmethod
-    def _refuse_other_swarm(others: list[str]) -> None:
-        if others:
-            domain = os.environ.get("ROS_DOMAIN_ID", "0")
-            raise LaunchError(
-                f"another swarm is active in ROS_DOMAIN_ID={domain}: {', '.join(others[:6])}"
-                f"{' …' if len(others) > 6 else ''}; stop it, or start this one with another "
-                "ROS_DOMAIN_ID"
-            )
-
     def _check_start(self) -> None:
-        """While starting: a second swarm that discovery shows only now (a process
-        announces itself every 3 s unless it uses this launch's Fast DDS profile)."""
+        """In the first OTHER_SWARM_WINDOW s: a second swarm that discovery shows only
+        now (before any fault: a dead process stays in the graph for a while)."""
         now = time.monotonic()
+        faults = self.events is not None and self.events.events
+        if self.wall_time > OTHER_SWARM_WINDOW or faults:
+            return
         if now - self._checked_at > 0.5:
             self._checked_at = now
-            self._refuse_other_swarm(self.monitor.second_swarm())
-
-    def _start_reaper(self) -> None:
-        """The reaper waits on a pipe only this process writes to (it never does): when
-        the launcher is gone, however it died, the reaper cleans up after it."""
-        read_end, self._reaper_pipe = os.pipe()
-        with open(self.procs.log_dir / "reaper.log", "a") as log:
-            subprocess.Popen(
-                [sys.executable, "-m", "aes_ros.ros.launch.reaper", str(self.procs.pid_file)],
-                stdin=read_end,
-                stdout=log,
-                stderr=subprocess.STDOUT,
-                start_new_session=True,
-            )
-        os.close(read_end)
+            preflight.refuse_other_swarm(self.monitor.second_swarm())
 
     def _sim_time(self) -> float | None:
         mon = self.monitor
         return mon.times[-1] if mon is not None and mon.times else None
-
-    def _command_for(self, name: str) -> list[str]:
-        """How to restart process ``name``: the bridge from the last sampled world
-        state, the recorder into the next bag segment, the supervisor with the last
-        swarm command; any other process as it was started."""
-        if name == "recorder":
-            record = Path(self.config.record).resolve()
-            earlier = [segment_path(record, k) for k in range(self._segments + 1)]
-            self._segments += 1
-            bag = segment_path(record, self._segments)
-            n = self.config.num_robots
-            return recorder_command(bag, n, sys.executable, [p for p in earlier if p.exists()]).argv
-        argv = list(self._specs[name].argv)
-        mon = self.monitor
-        if name == names.SIM_BRIDGE_NODE and mon.times:
-            state = WorldState(mon.times[-1], mon.positions[-1], mon.headings[-1])
-            path = state.save(self.procs.log_dir / "world_state.npz")
-            argv += ["-p", f"resume_from:={path}"]
-        if name == names.SUPERVISOR_NODE and mon.desired is not None:
-            twist = mon.desired.twist
-            argv += [
-                "-p", f"desired_direction:={ros_value([twist.linear.x, twist.linear.y])}",
-                "-p", f"rotation_rate:={ros_value(twist.angular.z)}",
-            ]  # fmt: skip
-        if name == names.SUPERVISOR_NODE and mon.enabled is not None:
-            argv += ["-p", f"enabled:={ros_value(mon.enabled)}"]
-        return argv
 
     def _wait_first_poses(self, bridge: Child) -> None:
         deadline = time.monotonic() + self.config.start_timeout
@@ -358,6 +314,7 @@ class Launcher:
 
     def _supervise(self) -> None:
         """Apply ``on_failure`` to processes that died; stream new samples to disk."""
+        self._check_start()
         if self.supervision is not None:
             self.supervision.check()
         self._stream()
@@ -558,20 +515,3 @@ def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchRe
     if launcher.events is not None:
         launcher.events.close()
     return result
-
-
-def fault_summary(events: list[Event], given_up: list[str]) -> str:
-    """One line: how many processes died, were restarted and recovered, were given up."""
-    died = [e for e in events if e.event in ("died", "cannot write the bag")]
-    if not died:
-        return "no faults"
-    recovered = [e for e in events if e.event == "recovered"]
-    per_process: dict[str, int] = {}
-    for e in died:
-        per_process[e.process] = per_process.get(e.process, 0) + 1
-    listed = ", ".join(f"{name} {n}×" for name, n in per_process.items())
-    gave_up = f", given up: {', '.join(given_up)}" if given_up else ""
-    return (
-        f"{len(died)} fault{'s' if len(died) != 1 else ''} ({listed}), "
-        f"{len(recovered)} recovered{gave_up}; details in events.csv"
-    )

@@ -76,3 +76,14 @@ def check_outputs(config: LaunchConfig) -> list[str]:
     if config.record is not None:
         check_writable(Path(config.record).resolve().parent, "--record")
     return room_warnings(config)
+
+
+def refuse_other_swarm(others: list[str]) -> None:
+    """LaunchError naming the nodes of another swarm in this ROS domain, if any."""
+    if others:
+        domain = os.environ.get("ROS_DOMAIN_ID", "0")
+        raise LaunchError(
+            f"another swarm is active in ROS_DOMAIN_ID={domain}: {', '.join(others[:6])}"
+            f"{' …' if len(others) > 6 else ''}; stop it, or start this one with another "
+            "ROS_DOMAIN_ID"
+        )

@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import os
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -30,6 +31,22 @@ def alive(pid: int) -> bool:
     except OSError:
         return False
     return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+def start_reaper(pid_file: Path, log: Path) -> int:
+    """Start a reaper for the processes listed in ``pid_file``; returns the write end
+    of its pipe, which the caller keeps open until it is done (never writes to it)."""
+    read_end, write_end = os.pipe()
+    with open(log, "a") as out:
+        subprocess.Popen(
+            [sys.executable, "-m", "aes_ros.ros.launch.reaper", str(pid_file)],
+            stdin=read_end,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+    os.close(read_end)
+    return write_end
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,17 +1,25 @@
-"""When to restart a process that died, and when to give up on it (pure).
+"""When and how to restart a process that died, and when to give up on it.
 
 The rule of ``aes-swarm launch --on-failure respawn``, like ``ros2 launch``'s
 ``respawn`` with ``respawn_delay`` but with back-off and a limit: the first
 restart waits :attr:`Backoff.first` seconds, each further one twice as long up to
 :attr:`Backoff.longest`; a process that has been restarted :attr:`Backoff.limit`
 times within :attr:`Backoff.window` seconds is given up on (the run goes on
-without it, if it can).
+without it, if it can). :class:`RestartCommands` says with which command line.
 """
 
 from __future__ import annotations
 
+import sys
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from aes_ros.ros import interface as names
+from aes_ros.ros.bag import segment_path
+from aes_ros.ros.launch.plan import ProcessSpec, recorder_command, ros_value
+from aes_ros.world_state import WorldState
 
 
 @dataclass(frozen=True)
@@ -55,3 +63,54 @@ class RestartPolicy:
     def restarts(self) -> int:
         """Restarts within the current window."""
         return len(self._restarts)
+
+
+@dataclass
+class RestartCommands:
+    """The command line that restarts a launch's process ``name`` (call the object).
+
+    - the bridge: from the last world state the monitor sampled (``resume_from``,
+      written to ``state_file``), so the swarm carries on where it was;
+    - the recorder: into the next bag segment (``run_1.mcap``, …), counting what
+      was lost since the earlier ones;
+    - the supervisor: with the last swarm command it published (a runtime
+      ``/swarm/cmd`` or enable survives its restart);
+    - any other process: as it was started.
+
+    specs : each process's first command line. monitor : the launcher's
+    :class:`~aes_ros.ros.launch.monitor.Monitor` (its samples, the latched command).
+    """
+
+    specs: dict[str, ProcessSpec]
+    monitor: Any
+    state_file: Path
+    record: Path | None
+    num_robots: int
+    segments: int = 0
+
+    def __call__(self, name: str) -> list[str]:
+        if name == "recorder":
+            record = Path(self.record).resolve()
+            earlier = [segment_path(record, k) for k in range(self.segments + 1)]
+            self.segments += 1
+            spec = recorder_command(
+                segment_path(record, self.segments),
+                self.num_robots,
+                sys.executable,
+                [p for p in earlier if p.exists()],
+            )
+            return spec.argv
+        argv = list(self.specs[name].argv)
+        mon = self.monitor
+        if name == names.SIM_BRIDGE_NODE and mon.times:
+            state = WorldState(mon.times[-1], mon.positions[-1], mon.headings[-1])
+            argv += ["-p", f"resume_from:={state.save(self.state_file)}"]
+        if name == names.SUPERVISOR_NODE and mon.desired is not None:
+            twist = mon.desired.twist
+            argv += [
+                "-p", f"desired_direction:={ros_value([twist.linear.x, twist.linear.y])}",
+                "-p", f"rotation_rate:={ros_value(twist.angular.z)}",
+            ]  # fmt: skip
+        if name == names.SUPERVISOR_NODE and mon.enabled is not None:
+            argv += ["-p", f"enabled:={ros_value(mon.enabled)}"]
+        return argv
