@@ -245,6 +245,9 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
         assert (out / name).stat().st_size > 0
     assert not (out / "trajectory.parts").exists()
     assert list(read_bags(bag_segments(tmp_path / "run.mcap"), [names.CLOCK]))  # readable
+    print(f"\nlauncher killed at sim time {t_kill:.2f} s: metrics.csv holds up to "
+          f"{t_last:.2f} s ({t_kill - t_last:.2f} s lost), "
+          f"{len(partial.times)} samples on disk")  # fmt: skip
 
 
 def test_lockstep_goes_on_without_a_dead_robot_host_and_counts_recording_losses(
@@ -281,6 +284,9 @@ def test_lockstep_goes_on_without_a_dead_robot_host_and_counts_recording_losses(
     summary = recording_summary(tmp_path / "run_1.mcap")
     assert int(summary["lost_total"]) > 0, summary  # the recorder's outage, counted
     assert "recorded" in summary[names.POSES]
+    print(f"\nlockstep: stepped on from sim time {t_kill:.2f} s without robot_host_1; "
+          f"recorder outage: {summary['lost_total']} messages counted lost ({summary[names.POSES]}"
+          " on /swarm/poses)")  # fmt: skip
 
 
 def test_on_failure_stop_ends_the_run_with_its_outputs(spawn, probe, ros_env, tmp_path):
