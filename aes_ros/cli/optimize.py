@@ -16,10 +16,10 @@ import time
 from pathlib import Path
 
 from aes_ros.cli.options import (
+    add_monte_carlo_option,
     add_scenario_options,
     check_tcacs_options,
     load_scenario,
-    number_type,
     scenario_label,
 )
 from aes_ros.optim import tcacs, tuning
@@ -33,20 +33,13 @@ FLAGS = {
     "gamma": "--gamma",
     "m": "--m",
 }
-#: Monte-Carlo runs per candidate (the paper's N_MC, SPEC §3.1).
-DEFAULT_MC = 10
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     evals, paper = tcacs.DEFAULT_MAX_EVALS, tcacs.PAPER_OPTIONS
     p.add_argument("--evals", type=int, default=evals, help=f"evaluation budget (default {evals})")
-    p.add_argument(
-        "--mc",
-        type=number_type(int, 1),
-        default=DEFAULT_MC,
-        help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
-    )
+    add_monte_carlo_option(p)
     p.add_argument("--w1", type=float, default=None, help="weight of F (default 1/N)")
     p.add_argument("--w2", type=float, default=-1.0, help="weight of psi (default -1)")
     default_box = ",".join(f"{n}={lo:g}:{hi:g}" for n, (lo, hi) in tuning.DEFAULT_BOUNDS.items())

@@ -54,6 +54,20 @@ def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
     return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
 
 
+#: Monte-Carlo runs per candidate (the paper's N_MC, SPEC §3.1).
+DEFAULT_MC = 10
+
+
+def add_monte_carlo_option(p: argparse.ArgumentParser) -> None:
+    """``--mc``: Monte-Carlo runs per candidate, with common random numbers."""
+    p.add_argument(
+        "--mc",
+        type=number_type(int, 1),
+        default=DEFAULT_MC,
+        help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
+    )
+
+
 def scenario_label(args: argparse.Namespace) -> str:
     """The run's name in summaries and titles: the setup, or the scenario file's stem."""
     return args.scenario.stem if args.scenario is not None else args.setup

@@ -10,8 +10,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from aes_ros.cli.optimize import DEFAULT_MC
 from aes_ros.cli.options import (
+    add_monte_carlo_option,
     add_scenario_options,
     check_tcacs_options,
     load_scenario,
@@ -25,12 +25,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     evals = tcacs.DEFAULT_MAX_EVALS
     p.add_argument("--evals", type=int, default=evals, help=f"evaluations per TCACS run ({evals})")
-    p.add_argument(
-        "--mc",
-        type=number_type(int, 1),
-        default=DEFAULT_MC,
-        help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
-    )
+    add_monte_carlo_option(p)
     p.add_argument(
         "--restarts",
         type=number_type(int, 1),
