@@ -190,17 +190,18 @@ class SimBridgeNode(Node):
 
         self.step_timer = self.create_timer(self._step_period(), self.on_step, clock=self.steady)
         self.watchdog = self.create_timer(0.25, self.on_watchdog, clock=self.steady)
-        self.publish_state()
         if abs(scenario.dt - self.dt) > 1e-12:
             self.get_logger().warning(
                 f"publish_rate {self.rate:g} Hz differs from the scenario's dt = "
                 f"{scenario.dt:g} s; robots should use dt = {self.dt:g} s"
             )
+        # Said before the first state goes out: whoever sees the state can find the line.
         self.get_logger().info(
             f"{names.BRIDGE_READY} {self.n} robots, {self.world.mode} mode, {self.rate:g} Hz "
             f"control, {self.world.substeps} physics steps per period, lockstep={self.lockstep}"
             f", real_time_factor={self.real_time_factor:g}, t={self.world.time:g} s"
         )
+        self.publish_state()
 
     # --- set-up ----------------------------------------------------------------
     def _build_messages(self) -> None:

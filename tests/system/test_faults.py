@@ -128,13 +128,16 @@ def kill_bridge(probe, arrivals, ros_env, logs: Path) -> float:
     killed = kill(ros_env, "aes-sim-bridge")
     topics = [names.CLOCK, *(names.robot_topic(i, names.CMD_VEL) for i in (0, 15))]
     took = recovered(probe, arrivals, topics, killed, "the bridge")
+
     # It carries on where it was: its clock did not start over (its ready line says
     # from when; metrics.csv, checked at the end, has no gap).
-    ready = [line for line in (logs / "sim_bridge.log").read_text().splitlines()
-             if names.BRIDGE_READY in line]  # fmt: skip
-    assert len(ready) == 2
-    resumed = float(ready[-1].rsplit("t=", 1)[1].split()[0])
-    assert t_before - 0.5 <= resumed <= t_before + 0.5, (t_before, ready[-1])
+    def ready() -> list[str]:
+        text = (logs / "sim_bridge.log").read_text()
+        return [line for line in text.splitlines() if names.BRIDGE_READY in line]
+
+    assert wait_for(lambda: len(ready()) == 2, 10.0), ready()
+    resumed = float(ready()[-1].rsplit("t=", 1)[1].split()[0])
+    assert t_before - 0.5 <= resumed <= t_before + 0.5, (t_before, ready()[-1])
     check_heading_west(probe, 3.0, "after the bridge")
     return took
 
