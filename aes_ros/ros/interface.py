@@ -51,6 +51,8 @@ CMD = "/swarm/cmd"
 ALIGNMENT = "/swarm/alignment"
 HEADING_ORDER = "/swarm/heading_order"
 TOTAL_FORCE = "/swarm/total_force"
+#: visualization_msgs/MarkerArray of the swarm for RViz2 and Foxglove (the dashboard's).
+MARKERS = "/swarm/markers"
 
 #: The recorder's progress: the stamp of the latest ``/swarm/poses`` it has written
 #: (rosgraph_msgs/Clock). A lockstep bridge with ``wait_for_recorder`` waits for it.
@@ -72,6 +74,7 @@ SIM_BRIDGE_NODE = "sim_bridge"
 RECORDER_NODE = "aes_recorder"
 LAUNCHER_NODE = "aes_launcher"
 STEER_NODE = "aes_steer"
+DASHBOARD_NODE = "dashboard"
 
 # --- choices of string parameters and options --------------------------------------------
 
@@ -94,6 +97,8 @@ SUPERVISOR_RECEIVING_POSES = f"receiving {POSES}"
 BRIDGE_READY = "bridge ready:"
 #: A robot host or a robot node, once its robot nodes exist.
 ROBOTS_READY = "robots ready:"
+#: The dashboard, once its web server listens (the URL follows).
+DASHBOARD_READY = "dashboard at"
 #: The recorder, once its bag is open.
 RECORDER_STARTED = "recording to"
 #: The recorder, once every robot's cmd_vel and every supervisor topic has a publisher.

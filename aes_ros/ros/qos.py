@@ -87,3 +87,8 @@ STREAM_WRITER = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+
+#: /swarm/markers (dashboard → RViz2, Foxglove, a bag): reliable (RViz2's default)
+#: and only the newest; a viewer that lags skips to the latest picture.
+DISPLAY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)

@@ -1,0 +1,345 @@
+"""The dashboard's ROS node ``/dashboard``: it listens to the swarm, and steers it through
+the same public interface as the CLI and ``ros2`` (SPEC §7).
+
+It reads ``/swarm/poses``, the supervisor's command and metrics, ``/clock`` and every
+robot's ``cmd_vel`` (liveness) into a :class:`dashboard_node.view.SwarmView`;
+publishes ``/swarm/cmd`` and, while anyone subscribes, ``/swarm/markers``; calls
+``/swarm/enable``, ``/sim/pause``, ``/sim/reset`` and the robots' and the
+supervisor's ``set_parameters``. The web server (:mod:`dashboard_node.server`)
+runs in another thread; it hands control requests over with :meth:`DashboardNode.submit`,
+and they run in the node's own thread.
+
+Start it (or ``aes-swarm dashboard``, or ``aes-swarm launch --dashboard``)::
+
+    aes-dashboard --ros-args -p scenario:=combined -p port:=8080 -p use_sim_time:=true
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import queue
+import re
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
+from rcl_interfaces.srv import SetParameters
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Bool, Float64
+from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import MarkerArray
+
+from aes_ros.ros import interface as names
+from aes_ros.ros import parameters as rp
+from aes_ros.ros.cdr import decode_pose_array
+from aes_ros.ros.conversions import (
+    BadMessageError,
+    drive_to_twist,
+    point_to_array,
+    stamp_to_ns,
+    twist_to_drive,
+)
+from aes_ros.ros.markers import swarm_markers
+from aes_ros.ros.node_tools import ThrottledWarnings
+from aes_ros.ros.qos import COMMAND, DISPLAY, LATCHED, LATEST_COMMAND, SENSOR
+from dashboard_node.controls import Control, Drive, Enable, SetGain, SimAction
+from dashboard_node.view import SwarmView
+
+#: Wall seconds a service or parameter call may take before it counts as unanswered.
+CALL_TIMEOUT = 5.0
+
+
+class DashboardNode(Node):
+    """The dashboard's node ``dashboard``.
+
+    Parameters (read at start): ``host`` (string, default ``127.0.0.1``) and
+    ``port`` (int, default 8080) of the web server; ``token`` (string, default
+    empty: one is made when ``host`` is not a loopback address); ``frame_rate``
+    [Hz] (default 15) of the page's updates; ``markers_rate`` [Hz] (default 10,
+    at most 10) of ``/swarm/markers``; ``scenario`` and ``num_robots``: the sheet
+    it draws (an n-robot grid of the scenario when the poses have n robots).
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(names.DASHBOARD_NODE, **kwargs)
+        self._warn = ThrottledWarnings(self.get_logger())
+        scenario = rp.declare_scenario(self)
+        ro = {"read_only": True}
+        self.declare_parameter("host", "127.0.0.1", rp.text_descriptor("web server address", **ro))
+        self.declare_parameter(
+            "port", 8080, rp.int_descriptor("web server port (0: any free one)", 0, 65535, **ro)
+        )
+        self.declare_parameter(
+            "token",
+            "",
+            rp.text_descriptor(
+                "access token; empty: made up when host is not a loopback address", **ro
+            ),
+        )
+        self.declare_parameter(
+            "frame_rate", 15.0, rp.float_descriptor("updates of the page", "Hz", 1.0, 60.0, **ro)
+        )
+        self.declare_parameter(
+            "markers_rate",
+            10.0,
+            rp.float_descriptor("/swarm/markers while subscribed", "Hz", 0.1, 10.0, **ro),
+        )
+        label = self.get_parameter("scenario").value
+        self.lock = threading.Lock()
+        self.view = SwarmView(scenario, label=label.rsplit("/", 1)[-1].removesuffix(".yaml"))
+        self._requests: queue.Queue[tuple[Control, concurrent.futures.Future]] = queue.Queue()
+        self._param_clients: dict[str, Any] = {}
+
+        self.create_subscription(PoseArray, names.POSES, self.on_poses, SENSOR, raw=True)
+        for topic, name in (
+            (names.ALIGNMENT, "alignment"),
+            (names.HEADING_ORDER, "heading_order"),
+            (names.TOTAL_FORCE, "total_force"),
+        ):
+            self.create_subscription(
+                Float64,
+                topic,
+                lambda msg, name=name: self._locked(self.view.on_metric, name, msg.data),
+                LATCHED,
+            )
+        self.create_subscription(
+            TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
+        )
+        self.create_subscription(PointStamped, names.ROTATION_CENTER, self.on_center, LATCHED)
+        self.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
+        self.create_subscription(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
+        self._cmd_subs: list[Any] = []
+        self._watch_robots(self.view.n)
+
+        self.cmd_pub = self.create_publisher(Twist, names.CMD, COMMAND)
+        self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY)
+        self.markers_published = 0
+        self.enable_client = self.create_client(SetBool, names.ENABLE)
+        self.pause_client = self.create_client(SetBool, names.SIM_PAUSE)
+        self.reset_client = self.create_client(Trigger, names.SIM_RESET)
+        # Wall-clock timers: with use_sim_time a paused world stops /clock, and the
+        # request that would resume it must still be served.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(0.02, self.on_requests, clock=steady)
+        period = 1.0 / self.get_parameter("markers_rate").value
+        self.create_timer(period, self.on_markers, clock=steady)
+
+    # --- the swarm ------------------------------------------------------------------
+
+    def _locked(self, action: Callable[..., None], *args: Any) -> None:
+        with self.lock:
+            action(*args)
+
+    def _watch_robots(self, n: int) -> None:
+        """Liveness: every robot's ``cmd_vel``, raw (its content is not needed)."""
+        for sub in self._cmd_subs:
+            self.destroy_subscription(sub)
+        self._cmd_subs = [
+            self.create_subscription(
+                Twist,
+                names.robot_topic(i, names.CMD_VEL),
+                lambda _data, i=i: self.view.on_robot_command(i, time.monotonic()),
+                LATEST_COMMAND,
+                raw=True,
+            )
+            for i in range(n)
+        ]
+
+    def on_poses(self, data: bytes) -> None:
+        try:
+            sec, nanosec, xy, yaw = decode_pose_array(data)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/poses: {exc}")
+            return
+        resized = len(yaw) != self.view.n
+        with self.lock:
+            self.view.on_poses(sec + nanosec * 1e-9, xy, yaw)
+        if resized:
+            self._watch_robots(self.view.n)
+
+    def on_desired_velocity(self, msg: TwistStamped) -> None:
+        try:
+            direction, omega = twist_to_drive(msg.twist)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/desired_velocity: {exc}")
+            return
+        self._locked(self.view.on_command, direction, omega)
+
+    def on_center(self, msg: PointStamped) -> None:
+        try:
+            point = point_to_array(msg.point)
+        except BadMessageError as exc:
+            self._warn(f"dropped /swarm/rotation_center: {exc}")
+            return
+        self._locked(self.view.on_center, (float(point[0]), float(point[1])))
+
+    def on_enabled(self, msg: Bool) -> None:
+        with self.lock:
+            self.view.enabled = bool(msg.data)
+
+    def on_clock(self, msg: ClockMsg) -> None:
+        self._locked(self.view.on_clock, stamp_to_ns(msg.clock) * 1e-9, time.monotonic())
+
+    def on_markers(self) -> None:
+        """``/swarm/markers``, only while someone subscribes (RViz2, Foxglove, a bag)."""
+        if not self.markers_pub.get_subscription_count():
+            return
+        with self.lock:
+            frame = self.view.frame(time.monotonic())
+            springs = self.view.pairs.tolist()
+        if "x" in frame:
+            self.markers_pub.publish(swarm_markers(frame, springs, self.get_clock().now().to_msg()))
+            self.markers_published += 1
+
+    # --- control requests -------------------------------------------------------------
+
+    def submit(self, control: Control) -> concurrent.futures.Future:
+        """Run ``control`` in the node's thread; the future's result is (ok, message)."""
+        future: concurrent.futures.Future = concurrent.futures.Future()
+        self._requests.put((control, future))
+        return future
+
+    def on_requests(self) -> None:
+        while True:
+            try:
+                control, future = self._requests.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                self._run(control, future)
+            except Exception as exc:  # a request must never take the node down
+                future.set_result((False, f"{type(exc).__name__}: {exc}"))
+
+    def _run(self, control: Control, future: concurrent.futures.Future) -> None:
+        if isinstance(control, Drive):
+            self.cmd_pub.publish(drive_to_twist(control.direction, control.omega))
+            future.set_result(
+                (True, f"/swarm/cmd: direction {control.direction}, omega {control.omega:g} rad/s")
+            )
+        elif isinstance(control, Enable):
+            self._call(self.enable_client, SetBool.Request(data=control.enabled), future)
+        elif isinstance(control, SimAction) and control.action == "reset":
+            self._call(self.reset_client, Trigger.Request(), future)
+        elif isinstance(control, SimAction):
+            self._call(self.pause_client, SetBool.Request(data=control.action == "pause"), future)
+        elif isinstance(control, SetGain):
+            self._set_everywhere(control, future)
+
+    def _call(self, client: Any, request: Any, future: concurrent.futures.Future) -> None:
+        if not client.service_is_ready():
+            future.set_result((False, f"{client.srv_name}: nobody offers it"))
+            return
+        call = client.call_async(request)
+        call.add_done_callback(
+            lambda done: future.set_result((done.result().success, done.result().message))
+        )
+
+    def _set_everywhere(self, control: SetGain, future: concurrent.futures.Future) -> None:
+        """Set a gain on every robot node and the supervisor; the result counts the
+        nodes that accepted it and quotes the reasons of those that did not."""
+        targets = [
+            f"{namespace.rstrip('/')}/{name}"
+            for name, namespace in self.get_node_names_and_namespaces()
+            if (name == names.ROBOT_NODE and re.fullmatch(names.ROBOT_NAMESPACE_PATTERN, namespace))
+            or (name == names.SUPERVISOR_NODE and namespace == "/")
+        ]
+        if not targets:
+            future.set_result((False, f"{control.name}: no robot node or supervisor found"))
+            return
+        request = SetParameters.Request(
+            parameters=[Parameter(control.name, value=control.value).to_parameter_msg()]
+        )
+        results: dict[str, tuple[bool, str]] = {}
+        lock = threading.Lock()
+
+        def done(target: str, call: Any) -> None:
+            with lock:
+                result = call.result().results[0]
+                results[target] = (result.successful, result.reason)
+                if len(results) == len(targets):
+                    future.set_result(_summary(control, results))
+
+        for target in targets:
+            client = self._param_clients.get(target)
+            if client is None:
+                client = self.create_client(SetParameters, f"{target}/set_parameters")
+                self._param_clients[target] = client
+            call = client.call_async(request)
+            call.add_done_callback(lambda c, t=target: done(t, c))
+
+    def accepted(self, control: SetGain) -> None:
+        """A gain the nodes took: the forces the page draws use it too."""
+        self._locked(self.view.set_gain, control.name, control.value)
+
+
+def _summary(control: SetGain, results: dict[str, tuple[bool, str]]) -> tuple[bool, str]:
+    refused = {target: reason for target, (ok, reason) in results.items() if not ok}
+    took = len(results) - len(refused)
+    text = f"{control.name} = {control.value:g}: accepted by {took} of {len(results)} nodes"
+    if refused:
+        reasons = sorted(set(refused.values()))
+        text += f"; refused by {', '.join(sorted(refused)[:3])}"
+        text += f"{' …' if len(refused) > 3 else ''}: {' / '.join(reasons[:2])}"
+    return not refused, text
+
+
+def main(args: list[str] | None = None) -> int:
+    """``aes-dashboard``: the node spins in a thread, the web server in the main one,
+    until SIGINT or SIGTERM. Exit code 0 then, 1 if it cannot start (a bad
+    parameter, the port taken)."""
+    import asyncio
+    import signal
+
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.experimental import EventsExecutor
+    from rclpy.signals import SignalHandlerOptions
+
+    from aes_ros.ros.spin import STARTUP_ERRORS
+    from dashboard_node.server import Dashboard
+
+    node = None
+    done = threading.Event()
+    thread = None
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        node = DashboardNode()
+        executor = EventsExecutor()
+        executor.add_node(node)
+
+        def spin() -> None:
+            try:
+                while not done.is_set() and rclpy.ok():
+                    executor.spin_once(timeout_sec=0.1)
+            except ExternalShutdownException:
+                pass
+
+        thread = threading.Thread(target=spin, name="dashboard-ros", daemon=True)
+        thread.start()
+        get = node.get_parameter
+        dashboard = Dashboard(node, get("host").value, get("port").value, get("token").value)
+
+        async def serve() -> None:
+            stop = asyncio.Event()
+            loop = asyncio.get_running_loop()
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                loop.add_signal_handler(sig, stop.set)
+            await dashboard.serve(stop)
+
+        asyncio.run(serve())
+    except (*STARTUP_ERRORS, OSError) as exc:
+        rclpy.logging.get_logger(names.DASHBOARD_NODE).fatal(f"cannot start: {exc}")
+        return 1
+    finally:
+        done.set()
+        if thread is not None:
+            thread.join(timeout=5)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0

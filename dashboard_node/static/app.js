@@ -1,0 +1,313 @@
+// The aes-swarm dashboard page: draws the frames the server sends over a WebSocket and
+// sends the user's control messages (dashboard_node/controls.py says what is accepted).
+// No libraries: a canvas for the arena, the dial and the strip charts.
+
+const HISTORY_S = 60;
+const GAINS = ["alpha", "beta", "k", "w_l", "w_r"];
+
+// Everything the page knows; window.aesDashboard for the tests and the curious.
+const state = {
+  sheet: null,
+  frame: null,
+  frames: 0,
+  framesPerSecond: 0,
+  history: [],            // [t, psi, psi_heading, F]
+  view: { cx: 0, cy: 0, scale: 300, follow: true },
+  direction: [0, 0],
+  connected: false,
+  results: [],
+};
+window.aesDashboard = state;
+
+const $ = (id) => document.getElementById(id);
+const token = new URLSearchParams(location.search).get("token");
+let socket = null;
+
+// --------------------------------------------------------------------- connection
+
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const query = token ? `?token=${encodeURIComponent(token)}` : "";
+  socket = new WebSocket(`${scheme}://${location.host}/ws${query}`);
+  socket.onopen = () => { state.connected = true; };
+  socket.onclose = () => {
+    state.connected = false;
+    status("disconnected: retrying…");
+    setTimeout(connect, 1000);
+  };
+  socket.onmessage = (event) => receive(JSON.parse(event.data));
+}
+
+function send(message) {
+  if (!socket || socket.readyState !== WebSocket.OPEN) {
+    note(false, "not connected");
+    return;
+  }
+  socket.send(JSON.stringify(message));
+}
+
+function receive(message) {
+  if (message.type === "sheet") {
+    state.sheet = message;
+    state.history = message.history || [];
+  } else if (message.type === "frame") {
+    state.frame = message;
+    state.frames += 1;
+    remember(message);
+    if (state.view.follow && message.centroid) {
+      state.view.cx = message.centroid[0];
+      state.view.cy = message.centroid[1];
+    }
+    requestAnimationFrame(draw);
+  } else if (message.type === "result") {
+    note(message.ok, message.message);
+  }
+}
+
+function remember(frame) {
+  const m = frame.metrics || {};
+  if (frame.t == null || m.total_force == null) return;
+  const last = state.history[state.history.length - 1];
+  if (last && frame.t <= last[0]) {
+    if (frame.t < last[0] - 1) state.history = [];  // a new clock
+    else return;
+  }
+  state.history.push([frame.t, m.alignment, m.heading_order, m.total_force]);
+  while (state.history.length && state.history[0][0] < frame.t - HISTORY_S) state.history.shift();
+}
+
+setInterval(() => {  // frames per second, for the status line
+  state.framesPerSecond = state.frames - (state.lastCount || 0);
+  state.lastCount = state.frames;
+}, 1000);
+
+// --------------------------------------------------------------------- drawing
+
+function status(text) { $("status").textContent = text; }
+
+function fmt(value, digits = 2) { return value == null ? "–" : Number(value).toFixed(digits); }
+
+function drawStatus() {
+  const f = state.frame;
+  if (!f) return;
+  const silent = f.silent ? f.silent.length : 0;
+  status(
+    `t = ${fmt(f.t, 1)} s · real-time factor ${fmt(f.rtf, 2)} · robots ${f.n - silent} alive` +
+    `${silent ? `, ${silent} silent` : ""} · ${state.sheet ? state.sheet.scenario : ""} · ` +
+    `${f.enabled === false ? "disabled" : "enabled"} · ψ ${fmt(f.metrics.alignment)} · ` +
+    `${state.framesPerSecond} updates/s`
+  );
+  $("enable").textContent = f.enabled === false ? "enable" : "disable";
+}
+
+function draw() {
+  drawStatus();
+  drawArena();
+  drawDial();
+  drawChart("chart-psi", 1, "force alignment ψ", [0, 1]);
+  drawChart("chart-order", 2, "heading order ψ_heading", [0, 1]);
+  drawChart("chart-force", 3, "total force F", null);
+}
+
+function drawArena() {
+  const canvas = $("arena");
+  const w = (canvas.width = canvas.clientWidth);
+  const h = (canvas.height = canvas.clientHeight);
+  const ctx = canvas.getContext("2d");
+  ctx.clearRect(0, 0, w, h);
+  const f = state.frame;
+  if (!f || !f.x) return;
+  const { cx, cy, scale } = state.view;
+  const sx = (x) => w / 2 + (x - cx) * scale;
+  const sy = (y) => h / 2 - (y - cy) * scale;
+  // springs, tinted by strain
+  if (state.sheet && f.strain) {
+    state.sheet.springs.forEach(([i, j], k) => {
+      const a = Math.min(Math.abs(f.strain[k]) / 0.3, 1);
+      ctx.strokeStyle = `rgb(${187 + 24 * a}, ${187 * (1 - a)}, ${187 * (1 - a)})`;
+      ctx.lineWidth = 1 + a;
+      ctx.beginPath();
+      ctx.moveTo(sx(f.x[i]), sy(f.y[i]));
+      ctx.lineTo(sx(f.x[j]), sy(f.y[j]));
+      ctx.stroke();
+    });
+  }
+  // the centroid's trail
+  if (f.trail && f.trail.length > 1) {
+    ctx.strokeStyle = "#c62828";
+    ctx.lineWidth = 2;
+    ctx.beginPath();
+    f.trail.forEach(([x, y], k) => (k ? ctx.lineTo(sx(x), sy(y)) : ctx.moveTo(sx(x), sy(y))));
+    ctx.stroke();
+  }
+  // robots: Mona-sized discs coloured by psi_i, a line along the heading
+  const silent = new Set(f.silent || []);
+  const r = Math.max(2, 0.04 * scale);
+  for (let i = 0; i < f.x.length; i++) {
+    const x = sx(f.x[i]), y = sy(f.y[i]);
+    ctx.fillStyle = silent.has(i) ? "#9e9e9e" : `hsl(${120 * f.psi[i]}, 75%, 42%)`;
+    ctx.beginPath();
+    ctx.arc(x, y, r, 0, 2 * Math.PI);
+    ctx.fill();
+    ctx.strokeStyle = silent.has(i) ? "#616161" : "#212121";
+    ctx.setLineDash(silent.has(i) ? [3, 2] : []);
+    ctx.lineWidth = 1;
+    ctx.stroke();
+    ctx.setLineDash([]);
+    ctx.beginPath();
+    ctx.moveTo(x, y);
+    ctx.lineTo(x + 1.5 * r * Math.cos(f.theta[i]), y - 1.5 * r * Math.sin(f.theta[i]));
+    ctx.stroke();
+  }
+  // rotation centre and desired direction
+  if (f.center) {
+    const x = sx(f.center[0]), y = sy(f.center[1]);
+    ctx.strokeStyle = "#7b1fa2";
+    ctx.lineWidth = 2;
+    ctx.beginPath();
+    ctx.moveTo(x - 6, y - 6); ctx.lineTo(x + 6, y + 6);
+    ctx.moveTo(x - 6, y + 6); ctx.lineTo(x + 6, y - 6);
+    ctx.stroke();
+  }
+  if (f.centroid && f.direction && (f.direction[0] || f.direction[1])) {
+    arrow(ctx, sx(f.centroid[0]), sy(f.centroid[1]), 60 * f.direction[0], -60 * f.direction[1], "#1565c0");
+  }
+}
+
+function arrow(ctx, x, y, dx, dy, color) {
+  const len = Math.hypot(dx, dy);
+  if (len < 1) return;
+  ctx.strokeStyle = ctx.fillStyle = color;
+  ctx.lineWidth = 3;
+  ctx.beginPath();
+  ctx.moveTo(x, y);
+  ctx.lineTo(x + dx, y + dy);
+  ctx.stroke();
+  const ux = dx / len, uy = dy / len;
+  ctx.beginPath();
+  ctx.moveTo(x + dx, y + dy);
+  ctx.lineTo(x + dx - 10 * ux + 6 * uy, y + dy - 10 * uy - 6 * ux);
+  ctx.lineTo(x + dx - 10 * ux - 6 * uy, y + dy - 10 * uy + 6 * ux);
+  ctx.fill();
+}
+
+function drawDial() {
+  const canvas = $("dial");
+  const ctx = canvas.getContext("2d");
+  const R = canvas.width / 2 - 8, c = canvas.width / 2;
+  ctx.clearRect(0, 0, canvas.width, canvas.height);
+  ctx.strokeStyle = "#90a4ae";
+  ctx.lineWidth = 1;
+  ctx.beginPath();
+  ctx.arc(c, c, R, 0, 2 * Math.PI);
+  ctx.moveTo(c - R, c); ctx.lineTo(c + R, c);
+  ctx.moveTo(c, c - R); ctx.lineTo(c, c + R);
+  ctx.stroke();
+  ctx.fillStyle = "#607d8b";
+  ctx.fillText("N", c - 3, 12); ctx.fillText("E", 2 * c - 10, c + 4);
+  const f = state.frame;
+  if (f && f.direction) arrow(ctx, c, c, R * f.direction[0], -R * f.direction[1], "#90caf9");
+  arrow(ctx, c, c, R * state.direction[0], -R * state.direction[1], "#1565c0");
+  $("dir-x").textContent = fmt(state.direction[0]);
+  $("dir-y").textContent = fmt(state.direction[1]);
+}
+
+function drawChart(id, column, label, range) {
+  const canvas = $(id);
+  const ctx = canvas.getContext("2d");
+  const w = canvas.width, h = canvas.height;
+  ctx.clearRect(0, 0, w, h);
+  const rows = state.history.filter((row) => row[column] != null);
+  ctx.fillStyle = "#455a64";
+  ctx.fillText(label + (rows.length ? ` ${fmt(rows[rows.length - 1][column])}` : ""), 4, 11);
+  if (rows.length < 2) return;
+  const t1 = rows[rows.length - 1][0], t0 = t1 - HISTORY_S;
+  const values = rows.map((row) => row[column]);
+  const lo = range ? range[0] : Math.min(...values), hi = range ? range[1] : Math.max(...values);
+  const span = hi - lo || 1;
+  ctx.strokeStyle = "#1565c0";
+  ctx.lineWidth = 1.5;
+  ctx.beginPath();
+  rows.forEach((row, k) => {
+    const x = ((row[0] - t0) / HISTORY_S) * w, y = h - 4 - ((row[column] - lo) / span) * (h - 18);
+    k ? ctx.lineTo(x, y) : ctx.moveTo(x, y);
+  });
+  ctx.stroke();
+}
+
+function note(ok, text) {
+  state.results.push({ ok, text });
+  const item = document.createElement("li");
+  item.className = ok ? "ok" : "error";
+  item.textContent = text;
+  $("messages").prepend(item);
+}
+
+// --------------------------------------------------------------------- controls
+
+function setDirectionFrom(event) {
+  const canvas = $("dial");
+  const rect = canvas.getBoundingClientRect();
+  const R = canvas.width / 2 - 8, c = canvas.width / 2;
+  let x = (event.clientX - rect.left - c) / R, y = -(event.clientY - rect.top - c) / R;
+  const len = Math.hypot(x, y);
+  if (len > 1) { x /= len; y /= len; }
+  state.direction = [Math.round(x * 100) / 100, Math.round(y * 100) / 100];
+  drawDial();
+}
+
+function sendDrive() {
+  send({ type: "drive", direction: state.direction, omega: Number($("omega").value) });
+}
+
+function setup() {
+  const dial = $("dial");
+  let dragging = false;
+  dial.addEventListener("pointerdown", (e) => { dragging = true; setDirectionFrom(e); });
+  dial.addEventListener("pointermove", (e) => dragging && setDirectionFrom(e));
+  dial.addEventListener("pointerup", () => { dragging = false; sendDrive(); });
+  $("stop-drive").addEventListener("click", () => { state.direction = [0, 0]; sendDrive(); });
+  $("omega").addEventListener("input", () => { $("omega-value").textContent = $("omega").value; });
+  $("omega").addEventListener("change", sendDrive);
+  $("enable").addEventListener("click", () =>
+    send({ type: "enable", enabled: state.frame ? state.frame.enabled === false : false }));
+  for (const action of ["pause", "resume", "reset"]) {
+    $(action).addEventListener("click", () => send({ type: "sim", action }));
+  }
+  for (const name of GAINS) {
+    const row = document.createElement("div");
+    row.className = "gain";
+    row.innerHTML = `<label for="gain-${name}">${name}</label>` +
+      `<input id="gain-${name}" type="number" step="any"><button type="button">set</button>`;
+    row.querySelector("button").addEventListener("click", () => {
+      const text = row.querySelector("input").value.trim();
+      const value = Number(text);
+      if (text === "" || !Number.isFinite(value)) { note(false, `${name}: ${text || "(empty)"} is not a number`); return; }
+      send({ type: "gain", name, value });
+    });
+    $("gains").appendChild(row);
+  }
+  // pan and zoom; panning stops following the swarm
+  const arena = $("arena");
+  let last = null;
+  arena.addEventListener("pointerdown", (e) => { last = [e.clientX, e.clientY]; });
+  window.addEventListener("pointerup", () => { last = null; });
+  arena.addEventListener("pointermove", (e) => {
+    if (!last) return;
+    state.view.cx -= (e.clientX - last[0]) / state.view.scale;
+    state.view.cy += (e.clientY - last[1]) / state.view.scale;
+    last = [e.clientX, e.clientY];
+    state.view.follow = false;
+    $("follow").checked = false;
+    draw();
+  });
+  arena.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    state.view.scale = Math.min(5000, Math.max(5, state.view.scale * Math.pow(1.1, -e.deltaY / 100)));
+    draw();
+  }, { passive: false });
+  $("follow").addEventListener("change", () => { state.view.follow = $("follow").checked; });
+  connect();
+}
+
+setup();

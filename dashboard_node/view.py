@@ -1,0 +1,198 @@
+"""What the dashboard shows, from what the swarm publishes (pure: numpy, no ROS).
+
+:class:`SwarmView` is fed the swarm's messages as arrays (poses, the swarm
+command, the metrics, the clock, each robot's last command time) and makes the
+frames the page draws: every robot's pose and its force alignment ψ_i (E8), every
+spring's strain, the centroid trail, the rotation centre and the desired
+direction, the metrics ψ (E8), ψ_heading (E7) and F (E9), and a status line. The
+forces are those of E4 with the dashboard's gains and the supervisor's command,
+computed with :mod:`aes_ros.model`, as the supervisor does.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from aes_ros.formations import spring_pairs
+from aes_ros.metrics import FORCE_EPS
+from aes_ros.model import Gains, SwarmCommand, total_forces
+from aes_ros.scenario import Scenario
+
+#: Sim seconds of metrics history and centroid trail kept (the strip charts' span).
+HISTORY_S = 60.0
+#: Wall seconds without a command after which a robot counts as silent.
+SILENT_AFTER = 1.0
+#: Digits kept in a frame (0.1 mm, 1 mrad): enough to draw, small to send.
+DIGITS = 4
+
+
+@dataclass
+class SwarmView:
+    """The swarm as last heard, and the frames made of it.
+
+    scenario : the sheet (neighbours, rest lengths) and the default gains.
+    label : the scenario's name in the status line.
+    """
+
+    scenario: Scenario
+    label: str = ""
+    gains: Gains = field(init=False)
+    command: SwarmCommand = field(init=False)
+    enabled: bool | None = None
+    t: float | None = None
+    positions: np.ndarray | None = None
+    headings: np.ndarray | None = None
+    metrics: dict[str, float] = field(default_factory=dict)
+    history: deque = field(default_factory=deque)
+    trail: deque = field(default_factory=deque)
+    _clock: deque = field(default_factory=lambda: deque(maxlen=200))
+    _last_command: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        self.gains = self.scenario.gains
+        self.command = self.scenario.command
+        self._sheet(len(self.scenario.nominal_positions()))
+
+    def _sheet(self, n: int) -> None:
+        """The sheet of ``n`` robots: the scenario's, or an n-robot grid of it."""
+        scenario = self.scenario
+        if len(scenario.nominal_positions()) != n:
+            scenario = scenario.with_robots(n)
+        _, self.neighbors, self.rest = scenario.sheet()
+        self.pairs = spring_pairs(self.neighbors)
+        self.n = n
+        self._last_command = np.full(n, -math.inf)
+
+    # --- what the swarm says ----------------------------------------------------------
+
+    def on_poses(self, t: float, positions: np.ndarray, headings: np.ndarray) -> None:
+        """A ``/swarm/poses`` message: sim time [s], positions (N, 2) [m], headings (N,)."""
+        if len(headings) != self.n:
+            self._sheet(len(headings))
+            self.trail.clear()
+        if self.t is not None and t < self.t:  # a new clock: start the trail over
+            self.trail.clear()
+            self.history.clear()
+        self.t, self.positions, self.headings = t, positions, headings
+        c = positions.mean(axis=0)
+        self.trail.append((t, float(c[0]), float(c[1])))
+        while self.trail and self.trail[0][0] < t - HISTORY_S:
+            self.trail.popleft()
+
+    def on_metric(self, name: str, value: float) -> None:
+        """``alignment``, ``heading_order`` or ``total_force`` from the supervisor."""
+        self.metrics[name] = value
+        if name == "total_force" and self.t is not None:
+            row = (
+                self.t,
+                self.metrics.get("alignment", math.nan),
+                self.metrics.get("heading_order", math.nan),
+                value,
+            )
+            self.history.append(row)
+            while self.history and self.history[0][0] < self.t - HISTORY_S:
+                self.history.popleft()
+
+    def on_command(self, direction: tuple[float, float], omega: float) -> None:
+        self.command = SwarmCommand(direction, omega, self.command.center)
+
+    def on_center(self, center: tuple[float, float] | None) -> None:
+        """The supervisor's rotation centre (None: the live centroid)."""
+        self.command = SwarmCommand(self.command.direction, self.command.omega, center)
+
+    def on_clock(self, t: float, wall: float) -> None:
+        self._clock.append((wall, t))
+
+    def on_robot_command(self, robot_id: int, wall: float) -> None:
+        """Robot ``robot_id`` published a ``cmd_vel`` at wall time ``wall`` [s]."""
+        if 0 <= robot_id < self.n:
+            self._last_command[robot_id] = wall
+
+    def set_gain(self, name: str, value: float) -> None:
+        """A gain the robots accepted: the forces drawn use it too."""
+        self.gains = Gains(**{**self.gains.__dict__, name: value})
+
+    # --- what the page gets -----------------------------------------------------------
+
+    def real_time_factor(self) -> float | None:
+        """Sim seconds per wall second over the last clock messages."""
+        if len(self._clock) < 2:
+            return None
+        (w0, t0), (w1, t1) = self._clock[0], self._clock[-1]
+        return (t1 - t0) / (w1 - w0) if w1 > w0 else None
+
+    def silent(self, wall: float) -> np.ndarray:
+        """Ids of the robots not heard from (``cmd_vel``) for SILENT_AFTER s."""
+        return np.flatnonzero(wall - self._last_command > SILENT_AFTER)
+
+    def sheet_message(self) -> dict[str, Any]:
+        """The static part, sent once per viewer and when the swarm's size changes."""
+        return {
+            "type": "sheet",
+            "n": self.n,
+            "springs": self.pairs.tolist(),
+            "diameter": 0.08,
+            "scenario": self.label,
+            "history": [[_r(v) for v in row] for row in self.history],
+        }
+
+    def frame(self, wall: float) -> dict[str, Any]:
+        """The moving part, sent to every viewer at the frame rate."""
+        out: dict[str, Any] = {
+            "type": "frame",
+            "t": self.t,
+            "n": self.n,
+            "rtf": _r(self.real_time_factor()),
+            "enabled": self.enabled,
+            "silent": self.silent(wall).tolist(),
+            "direction": [_r(v) for v in self.command.direction],
+            "omega": _r(self.command.omega),
+            "metrics": {k: _r(v) for k, v in self.metrics.items()},
+        }
+        if self.positions is None:
+            return out
+        pos, head = self.positions, self.headings
+        forces = total_forces(pos, self.neighbors, self.rest, self.gains, self.command)
+        norm = np.hypot(forces[:, 0], forces[:, 1])
+        along = np.abs(forces[:, 0] * np.cos(head) + forces[:, 1] * np.sin(head))
+        psi = np.where(norm > FORCE_EPS, along / np.where(norm > FORCE_EPS, norm, 1.0), 1.0)
+        strain = spring_strains(pos, self.pairs, self.neighbors, self.rest)
+        center = self.command.center
+        centroid = pos.mean(axis=0)
+        out.update(
+            x=np.round(pos[:, 0], DIGITS).tolist(),
+            y=np.round(pos[:, 1], DIGITS).tolist(),
+            theta=np.round(head, 3).tolist(),
+            psi=np.round(psi, 3).tolist(),
+            force=np.round(norm, 3).tolist(),
+            strain=np.round(strain, 3).tolist(),
+            centroid=[_r(v) for v in centroid],
+            center=[_r(v) for v in (centroid if center is None else center)],
+            trail=[[_r(x), _r(y)] for _, x, y in list(self.trail)[::5]],
+        )
+        return out
+
+
+def spring_strains(
+    positions: np.ndarray, pairs: np.ndarray, neighbors: np.ndarray, rest: np.ndarray
+) -> np.ndarray:
+    """Relative deformation (|r_ij| - l_ij) / l_ij of each spring ``pairs: (M, 2)`` (i < j),
+    positive when stretched. positions : (N, 2) [m]; neighbors, rest : (N, K)."""
+    if len(pairs) == 0:
+        return np.zeros(0)
+    i, j = pairs[:, 0], pairs[:, 1]
+    slot = np.argmax(neighbors[i] == j[:, None], axis=1)
+    length = rest[i, slot]
+    return (np.linalg.norm(positions[j] - positions[i], axis=1) - length) / length
+
+
+def _r(value: float | None) -> float | None:
+    """A number for JSON: rounded, and None for NaN/inf (JSON has no such numbers)."""
+    if value is None or not math.isfinite(value):
+        return None
+    return round(float(value), DIGITS)
