@@ -6,13 +6,19 @@ cd "$(dirname "$0")/.."
 python3 -m venv .venv
 .venv/bin/python -m pip install --quiet --upgrade pip
 .venv/bin/python -m pip install --quiet -e ".[test,bench]"
-# tests/system/test_multihost.py injects packet loss with nftables: install nft when
-# it is missing and we are root (quietly; without apt the loss test skips).
-if ! command -v nft >/dev/null 2>&1 && [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
+# Debian packages some tests need, installed when missing and we are root (quietly; without
+# apt those tests skip with a reason): nftables injects packet loss in
+# tests/system/test_multihost.py; chromium and chromium-driver drive the dashboard in
+# tests/system/test_dashboard_browser.py (the system browser: nothing is downloaded at run time).
+missing=()
+command -v nft >/dev/null 2>&1 || missing+=(nftables)
+command -v chromium >/dev/null 2>&1 || missing+=(chromium)
+command -v chromedriver >/dev/null 2>&1 || missing+=(chromium-driver)
+if [ "${#missing[@]}" -gt 0 ] && [ "$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then
     if ! { timeout 300 apt-get update -qq &&
-        DEBIAN_FRONTEND=noninteractive timeout 300 apt-get install -y -qq \
-            --no-install-recommends nftables; } >/dev/null 2>&1; then
-        echo "setup: could not install nftables; the packet-loss test will be skipped" >&2
+        DEBIAN_FRONTEND=noninteractive timeout 600 apt-get install -y -qq \
+            --no-install-recommends "${missing[@]}"; } >/dev/null 2>&1; then
+        echo "setup: could not install ${missing[*]}; the tests that need them will be skipped" >&2
     fi
 fi
 echo "aes-swarm installed in $(pwd)/.venv (activate with: . .venv/bin/activate)"

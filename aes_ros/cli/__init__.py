@@ -24,6 +24,7 @@ COMMANDS: dict[str, str] = {
     "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
+    "dashboard": "watch and steer the running swarm in the browser",
     "report": "rebuild a launch's trajectory, metrics, plots and summary from what is on disk",
 }
 
@@ -43,6 +44,9 @@ DESCRIPTIONS: dict[str, str] = {
     "processes, wait until every robot moves, run for --duration seconds of sim time "
     "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
     "snapshots.png and metrics.png to --out.",
+    "dashboard": "A ROS node with a web server: the swarm drawn live (robots coloured by "
+    "their force alignment, springs by strain, the centroid's trail), strip charts of the "
+    "order and the force, and controls that act through the swarm's public ROS interface.",
     "report": "Write trajectory.npz, metrics.csv, snapshots.png and metrics.png of a run "
     "directory from the trajectory parts that aes-swarm launch streams while it runs, e.g. "
     "after the launcher was killed.",

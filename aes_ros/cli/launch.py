@@ -68,6 +68,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "last world state, the recorder into a new bag segment), continue without it, or "
         "stop the run; every fault goes to OUT/events.csv",
     )  # fmt: skip
+    p.add_argument(
+        "--dashboard", nargs="?", const=8080, default=None, type=number_type(int, 0),
+        metavar="PORT",
+        help="also start the browser dashboard on http://127.0.0.1:PORT/ (default 8080; "
+        "0: any free port) and print its URL",
+    )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
         real_time_factor=args.real_time_factor,
         clip=bool(sc.clip) if "clip" in overrides else None,
         on_failure=args.on_failure,
+        dashboard=args.dashboard,
     )
     try:
         result = launch(config, say=lambda line: print(line, flush=True))

@@ -68,6 +68,7 @@ from aes_ros.ros.launch.plan import (
     LaunchConfig,
     LaunchError,
     ProcessSpec,
+    dashboard_command,
     node_commands,
     recorder_command,
     write_robot_params,
@@ -238,6 +239,8 @@ class Launcher:
             for spec in (supervisor_spec, *robot_specs):
                 self.procs.start(*spec)
             self._wait_first_poses(bridge)
+        if cfg.dashboard is not None:
+            self._start_dashboard(scenario_file)
         restart = RestartCommands(
             self._specs, self.monitor, self.procs.log_dir / "world_state.npz", cfg.record, n
         )
@@ -252,6 +255,18 @@ class Launcher:
             f"real-time factor {cfg.real_time_factor:g}, on failure {cfg.on_failure}; "
             f"logs in {self.procs.log_dir}"
         )
+
+    def _start_dashboard(self, scenario_file: Path) -> None:
+        """Start the browser dashboard and say its URL (from its ready line)."""
+        spec = dashboard_command(self.config, scenario_file)
+        self._specs[spec.name] = spec
+        child = self.procs.start(*spec)
+        self._wait_signal(child, names.DASHBOARD_READY, 30.0)
+        for line in child.tail(100_000).splitlines():
+            if names.DASHBOARD_READY in line:
+                url = line.split(names.DASHBOARD_READY, 1)[1].strip()
+                self.say(f"launch: dashboard at {url}")
+                break
 
     def _check_start(self) -> None:
         """In the first OTHER_SWARM_WINDOW s: a second swarm that discovery shows only

@@ -51,6 +51,8 @@ class LaunchConfig:
         (:mod:`aes_ros.ros.launch.supervision`).
     lockstep_timeout : wall seconds after which a silent robot (or recorder) leaves
         the lockstep barrier (:mod:`sim_bridge.lockstep`).
+    dashboard : start the browser dashboard (:mod:`dashboard_node`) on this port of
+        127.0.0.1 (0: any free port); None: no dashboard.
     """
 
     scenario: Scenario
@@ -75,6 +77,7 @@ class LaunchConfig:
     progress_every: float = 5.0
     on_failure: str = "respawn"
     lockstep_timeout: float = 2.0
+    dashboard: int | None = None
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -148,6 +151,8 @@ def ros_value(value: Any) -> str:
         return repr(float(value))
     if isinstance(value, list | tuple | np.ndarray):
         return "[" + ",".join(ros_value(v) for v in value) + "]"
+    if isinstance(value, str) and value == "":
+        return "''"  # rcl cannot parse `name:=` with nothing after it
     return str(value)
 
 
@@ -306,6 +311,17 @@ def node_commands(
         supervisor_command(config, scenario_file),
         *robot_commands(config, scenario_file, robots_file),
     ]
+
+
+def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
+    """``aes-dashboard`` on 127.0.0.1 at ``config.dashboard``, with sim time."""
+    params = {
+        "scenario": str(scenario_file),
+        "host": "127.0.0.1",
+        "port": int(config.dashboard or 0),
+        "use_sim_time": True,
+    }
+    return ProcessSpec(names.DASHBOARD_NODE, ["aes-dashboard", *ros_args(params)])
 
 
 def recorder_command(

@@ -40,6 +40,8 @@ def ready_signal(name: str) -> str:
         return names.SUPERVISOR_RECEIVING_POSES
     if name == "recorder":
         return names.recorder_receiving(names.POSES)
+    if name == names.DASHBOARD_NODE:
+        return names.DASHBOARD_READY
     return names.ROBOTS_READY
 
 
