@@ -4,7 +4,13 @@ over processes and names them, as pure command lines (nothing is started)."""
 from __future__ import annotations
 
 from aes_ros import scenario
-from aes_ros.ros.launch.plan import LaunchConfig, node_commands, split_robots
+from aes_ros.ros.launch.plan import (
+    LaunchConfig,
+    dashboard_command,
+    node_commands,
+    ros_args,
+    split_robots,
+)
 
 
 def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
@@ -22,3 +28,15 @@ def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
     assert len(per_robot) == 2 + 6 and "__ns:=/mona_5" in per_robot[-1][1]
     single = node_commands(LaunchConfig(sc, layout="single"), *files)
     assert len(single) == 3 and not any("robot_ids" in a for a in single[2][1])
+
+
+def test_dashboard_runs_on_loopback_with_sim_time(tmp_path) -> None:
+    sc = scenario.load("linear").with_robots(4)
+    name, argv = dashboard_command(LaunchConfig(sc, dashboard=8091), tmp_path / "s.yaml")
+    assert name == "dashboard" and argv[0] == "aes-dashboard"
+    assert {"host:=127.0.0.1", "port:=8091", "use_sim_time:=true"} <= set(argv)
+
+
+def test_an_empty_text_parameter_survives_the_command_line() -> None:
+    # rcl refuses `token:=` with nothing after it; YAML's '' is the empty string
+    assert ros_args({"token": ""}) == ["--ros-args", "-p", "token:=''"]
