@@ -1,8 +1,9 @@
 """The dashboard's ROS node ``/dashboard``: it listens to the swarm, and steers it through
 the same public interface as the CLI and ``ros2`` (SPEC §7).
 
-It reads ``/swarm/poses``, the supervisor's command and metrics, ``/clock`` and every
-robot's ``cmd_vel`` (liveness) into a :class:`dashboard_node.view.SwarmView`;
+It reads ``/swarm/poses``, the supervisor's command and metrics, ``/clock`` and the
+bridge's ``/diagnostics`` (which robots are silent) into a
+:class:`dashboard_node.view.SwarmView`;
 publishes ``/swarm/cmd`` and, while anyone subscribes, ``/swarm/markers``; calls
 ``/swarm/enable``, ``/sim/pause``, ``/sim/reset`` and the robots' and the
 supervisor's ``set_parameters``. The web server (:mod:`dashboard_node.server`)
@@ -22,8 +23,10 @@ import re
 import threading
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.clock import Clock, ClockType
@@ -44,9 +47,10 @@ from aes_ros.ros.conversions import (
     stamp_to_ns,
     twist_to_drive,
 )
+from aes_ros.ros.diagnostics import silent_robots
 from aes_ros.ros.markers import swarm_markers
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import COMMAND, DISPLAY, LATCHED, LATEST_COMMAND, SENSOR
+from aes_ros.ros.qos import COMMAND, DISPLAY, LATCHED, SENSOR
 from dashboard_node.controls import Control, Drive, Enable, SetGain, SimAction
 from dashboard_node.view import SwarmView
 
@@ -60,7 +64,8 @@ class DashboardNode(Node):
     Parameters (read at start): ``host`` (string, default ``127.0.0.1``) and
     ``port`` (int, default 8080) of the web server; ``token`` (string, default
     empty: one is made when ``host`` is not a loopback address); ``frame_rate``
-    [Hz] (default 15) of the page's updates; ``markers_rate`` [Hz] (default 10,
+    [Hz] (default 15) of the page's updates; ``label``: the run's name in the status
+    line (default: the scenario file's name); ``markers_rate`` [Hz] (default 10,
     at most 10) of ``/swarm/markers``; ``scenario`` and ``num_robots``: the sheet
     it draws (an n-robot grid of the scenario when the poses have n robots).
     """
@@ -89,9 +94,12 @@ class DashboardNode(Node):
             10.0,
             rp.float_descriptor("/swarm/markers while subscribed", "Hz", 0.1, 10.0, **ro),
         )
-        label = self.get_parameter("scenario").value
+        self.declare_parameter(
+            "label", "", rp.text_descriptor("the run's name in the status line", **ro)
+        )
+        label = self.get_parameter("label").value or Path(self.get_parameter("scenario").value).stem
         self.lock = threading.Lock()
-        self.view = SwarmView(scenario, label=label.rsplit("/", 1)[-1].removesuffix(".yaml"))
+        self.view = SwarmView(scenario, label=label)
         self._requests: queue.Queue[tuple[Control, concurrent.futures.Future]] = queue.Queue()
         self._param_clients: dict[str, Any] = {}
 
@@ -113,8 +121,7 @@ class DashboardNode(Node):
         self.create_subscription(PointStamped, names.ROTATION_CENTER, self.on_center, LATCHED)
         self.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
         self.create_subscription(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
-        self._cmd_subs: list[Any] = []
-        self._watch_robots(self.view.n)
+        self.create_subscription(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
 
         self.cmd_pub = self.create_publisher(Twist, names.CMD, COMMAND)
         self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY)
@@ -123,9 +130,10 @@ class DashboardNode(Node):
         self.pause_client = self.create_client(SetBool, names.SIM_PAUSE)
         self.reset_client = self.create_client(Trigger, names.SIM_RESET)
         # Wall-clock timers: with use_sim_time a paused world stops /clock, and the
-        # request that would resume it must still be served.
+        # request that would resume it must still be served. (The EventsExecutor has
+        # no guard conditions to wake it; 20 Hz polling is quick enough for a click.)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(0.02, self.on_requests, clock=steady)
+        self.create_timer(0.05, self.on_requests, clock=steady)
         period = 1.0 / self.get_parameter("markers_rate").value
         self.create_timer(period, self.on_markers, clock=steady)
 
@@ -135,20 +143,11 @@ class DashboardNode(Node):
         with self.lock:
             action(*args)
 
-    def _watch_robots(self, n: int) -> None:
-        """Liveness: every robot's ``cmd_vel``, raw (its content is not needed)."""
-        for sub in self._cmd_subs:
-            self.destroy_subscription(sub)
-        self._cmd_subs = [
-            self.create_subscription(
-                Twist,
-                names.robot_topic(i, names.CMD_VEL),
-                lambda _data, i=i: self.view.on_robot_command(i, time.monotonic()),
-                LATEST_COMMAND,
-                raw=True,
-            )
-            for i in range(n)
-        ]
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """The bridge's list of silent robots (:mod:`aes_ros.ros.diagnostics`)."""
+        silent = silent_robots(msg)
+        if silent is not None:
+            self._locked(self.view.on_silent, silent)
 
     def on_poses(self, data: bytes) -> None:
         try:
@@ -156,11 +155,8 @@ class DashboardNode(Node):
         except BadMessageError as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
             return
-        resized = len(yaw) != self.view.n
         with self.lock:
             self.view.on_poses(sec + nanosec * 1e-9, xy, yaw)
-        if resized:
-            self._watch_robots(self.view.n)
 
     def on_desired_velocity(self, msg: TwistStamped) -> None:
         try:
@@ -190,7 +186,7 @@ class DashboardNode(Node):
         if not self.markers_pub.get_subscription_count():
             return
         with self.lock:
-            frame = self.view.frame(time.monotonic())
+            frame = self.view.frame()
             springs = self.view.pairs.tolist()
         if "x" in frame:
             self.markers_pub.publish(swarm_markers(frame, springs, self.get_clock().now().to_msg()))
@@ -290,8 +286,8 @@ def _summary(control: SetGain, results: dict[str, tuple[bool, str]]) -> tuple[bo
 
 def main(args: list[str] | None = None) -> int:
     """``aes-dashboard``: the node spins in a thread, the web server in the main one,
-    until SIGINT or SIGTERM. Exit code 0 then, 1 if it cannot start (a bad
-    parameter, the port taken)."""
+    until SIGINT or SIGTERM. Exit code 0 then; 1 if it cannot start (a bad
+    parameter, the port taken) or its node fails."""
     import asyncio
     import signal
 
@@ -305,41 +301,47 @@ def main(args: list[str] | None = None) -> int:
 
     node = None
     done = threading.Event()
-    thread = None
+    threads: list[threading.Thread] = []
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         node = DashboardNode()
         executor = EventsExecutor()
         executor.add_node(node)
-
-        def spin() -> None:
-            try:
-                while not done.is_set() and rclpy.ok():
-                    executor.spin_once(timeout_sec=0.1)
-            except ExternalShutdownException:
-                pass
-
-        thread = threading.Thread(target=spin, name="dashboard-ros", daemon=True)
-        thread.start()
         get = node.get_parameter
         dashboard = Dashboard(node, get("host").value, get("port").value, get("token").value)
 
-        async def serve() -> None:
+        async def serve() -> int:
             stop = asyncio.Event()
             loop = asyncio.get_running_loop()
             for sig in (signal.SIGINT, signal.SIGTERM):
                 loop.add_signal_handler(sig, stop.set)
-            await dashboard.serve(stop)
+            failed: list[BaseException] = []
 
-        asyncio.run(serve())
+            def spin() -> None:
+                try:
+                    while not done.is_set() and rclpy.ok():
+                        executor.spin_once(timeout_sec=0.1)
+                except ExternalShutdownException:
+                    pass
+                except Exception as exc:  # without its node the page would show a frozen swarm
+                    failed.append(exc)
+                    node.get_logger().fatal(f"the node's thread failed: {exc!r}")
+                finally:
+                    loop.call_soon_threadsafe(stop.set)
+
+            threads.append(threading.Thread(target=spin, name="dashboard-ros", daemon=True))
+            threads[0].start()
+            await dashboard.serve(stop)
+            return 1 if failed else 0
+
+        return asyncio.run(serve())
     except (*STARTUP_ERRORS, OSError) as exc:
         rclpy.logging.get_logger(names.DASHBOARD_NODE).fatal(f"cannot start: {exc}")
         return 1
     finally:
         done.set()
-        if thread is not None:
+        for thread in threads:
             thread.join(timeout=5)
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
-    return 0

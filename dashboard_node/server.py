@@ -148,8 +148,10 @@ class Dashboard:
         sending: dict[web.WebSocketResponse, asyncio.Task] = {}
         while not stop.is_set():
             await asyncio.sleep(period)
+            if not self.viewers:
+                continue  # nobody watches: no frame to make
             with self.node.lock:
-                frame = self.node.view.frame(time.monotonic())
+                frame = self.node.view.frame()
                 sheet = self.node.view.sheet_message() if frame["n"] != n else None
             n = frame["n"]
             text = json.dumps(frame)

@@ -1,7 +1,7 @@
 """What the dashboard shows, from what the swarm publishes (pure: numpy, no ROS).
 
 :class:`SwarmView` is fed the swarm's messages as arrays (poses, the swarm
-command, the metrics, the clock, each robot's last command time) and makes the
+command, the metrics, the clock, the silent robots) and makes the
 frames the page draws: every robot's pose and its force alignment ψ_i (E8), every
 spring's strain, the centroid trail, the rotation centre and the desired
 direction, the metrics ψ (E8), ψ_heading (E7) and F (E9), and a status line. The
@@ -25,8 +25,6 @@ from aes_ros.scenario import Scenario
 
 #: Sim seconds of metrics history and centroid trail kept (the strip charts' span).
 HISTORY_S = 60.0
-#: Wall seconds without a command after which a robot counts as silent.
-SILENT_AFTER = 1.0
 #: Digits kept in a frame (0.1 mm, 1 mrad): enough to draw, small to send.
 DIGITS = 4
 
@@ -50,8 +48,8 @@ class SwarmView:
     metrics: dict[str, float] = field(default_factory=dict)
     history: deque = field(default_factory=deque)
     trail: deque = field(default_factory=deque)
+    silent: list[int] = field(default_factory=list)
     _clock: deque = field(default_factory=lambda: deque(maxlen=200))
-    _last_command: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         self.gains = self.scenario.gains
@@ -66,7 +64,6 @@ class SwarmView:
         _, self.neighbors, self.rest = scenario.sheet()
         self.pairs = spring_pairs(self.neighbors)
         self.n = n
-        self._last_command = np.full(n, -math.inf)
 
     # --- what the swarm says ----------------------------------------------------------
 
@@ -108,10 +105,9 @@ class SwarmView:
     def on_clock(self, t: float, wall: float) -> None:
         self._clock.append((wall, t))
 
-    def on_robot_command(self, robot_id: int, wall: float) -> None:
-        """Robot ``robot_id`` published a ``cmd_vel`` at wall time ``wall`` [s]."""
-        if 0 <= robot_id < self.n:
-            self._last_command[robot_id] = wall
+    def on_silent(self, robot_ids: list[int]) -> None:
+        """The robots the bridge has not heard from lately (``/diagnostics``)."""
+        self.silent = [i for i in robot_ids if 0 <= i < self.n]
 
     def set_gain(self, name: str, value: float) -> None:
         """A gain the robots accepted: the forces drawn use it too."""
@@ -126,10 +122,6 @@ class SwarmView:
         (w0, t0), (w1, t1) = self._clock[0], self._clock[-1]
         return (t1 - t0) / (w1 - w0) if w1 > w0 else None
 
-    def silent(self, wall: float) -> np.ndarray:
-        """Ids of the robots not heard from (``cmd_vel``) for SILENT_AFTER s."""
-        return np.flatnonzero(wall - self._last_command > SILENT_AFTER)
-
     def sheet_message(self) -> dict[str, Any]:
         """The static part, sent once per viewer and when the swarm's size changes."""
         return {
@@ -141,7 +133,7 @@ class SwarmView:
             "history": [[_r(v) for v in row] for row in self.history],
         }
 
-    def frame(self, wall: float) -> dict[str, Any]:
+    def frame(self) -> dict[str, Any]:
         """The moving part, sent to every viewer at the frame rate."""
         out: dict[str, Any] = {
             "type": "frame",
@@ -149,7 +141,7 @@ class SwarmView:
             "n": self.n,
             "rtf": _r(self.real_time_factor()),
             "enabled": self.enabled,
-            "silent": self.silent(wall).tolist(),
+            "silent": self.silent,
             "direction": [_r(v) for v in self.command.direction],
             "omega": _r(self.command.omega),
             "metrics": {k: _r(v) for k, v in self.metrics.items()},

@@ -61,6 +61,11 @@ class LockstepBarrier:
         self._member[silent] = False
         return np.flatnonzero(silent)
 
+    def silent(self, now: float, after: float) -> np.ndarray:
+        """Members not heard from for ``after`` wall seconds or more (never heard from
+        included), member of the barrier or not."""
+        return np.flatnonzero(now - self._heard >= after)
+
     def is_member(self, member: int) -> bool:
         return bool(self._member[member])
 

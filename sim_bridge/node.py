@@ -21,6 +21,7 @@ import sys
 import time
 
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseArray, Twist
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
@@ -35,6 +36,7 @@ from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import PoseArrayEncoder
 from aes_ros.ros.conversions import stamp_to_ns
+from aes_ros.ros.diagnostics import SILENT_AFTER, robots_status
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, LATEST_COMMAND, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
@@ -190,6 +192,8 @@ class SimBridgeNode(Node):
 
         self.step_timer = self.create_timer(self._step_period(), self.on_step, clock=self.steady)
         self.watchdog = self.create_timer(0.25, self.on_watchdog, clock=self.steady)
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, LATCHED)
+        self.create_timer(1.0, self.on_diagnostics, clock=self.steady)
         if abs(scenario.dt - self.dt) > 1e-12:
             self.get_logger().warning(
                 f"publish_rate {self.rate:g} Hz differs from the scenario's dt = "
@@ -227,6 +231,12 @@ class SimBridgeNode(Node):
             self.on_cmd_vel(robot_id, msg)
 
         return on_cmd_vel
+
+    def on_diagnostics(self) -> None:
+        """Once a wall second: which robots have gone silent (/diagnostics)."""
+        silent = self.barrier.silent(time.monotonic(), SILENT_AFTER)
+        silent = silent[silent < self.n]  # the recorder's place is not a robot
+        self.diagnostics_pub.publish(robots_status(self.n, silent, self.get_clock().now().to_msg()))
 
     def _step_period(self) -> float:
         """Wall period [s] of the step timer."""

@@ -53,6 +53,9 @@ HEADING_ORDER = "/swarm/heading_order"
 TOTAL_FORCE = "/swarm/total_force"
 #: visualization_msgs/MarkerArray of the swarm for RViz2 and Foxglove (the dashboard's).
 MARKERS = "/swarm/markers"
+#: diagnostic_msgs/DiagnosticArray: the bridge's view of which robots are silent
+#: (:mod:`aes_ros.ros.diagnostics`).
+DIAGNOSTICS = "/diagnostics"
 
 #: The recorder's progress: the stamp of the latest ``/swarm/poses`` it has written
 #: (rosgraph_msgs/Clock). A lockstep bridge with ``wait_for_recorder`` waits for it.

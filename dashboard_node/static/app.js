@@ -9,8 +9,11 @@ const GAINS = ["alpha", "beta", "k", "w_l", "w_r"];
 const state = {
   sheet: null,
   frame: null,
-  frames: 0,
+  frames: 0,               // frames received
   framesPerSecond: 0,
+  draws: 0,                // pictures drawn, and the time spent drawing them [ms]
+  drawMs: 0,
+  drawn: null,             // what the last picture showed: {robots, springs, t}
   history: [],            // [t, psi, psi_heading, F]
   view: { cx: 0, cy: 0, scale: 300, follow: true },
   direction: [0, 0],
@@ -50,6 +53,7 @@ function receive(message) {
   if (message.type === "sheet") {
     state.sheet = message;
     state.history = message.history || [];
+    state.fitted = false;
   } else if (message.type === "frame") {
     state.frame = message;
     state.frames += 1;
@@ -58,7 +62,8 @@ function receive(message) {
       state.view.cx = message.centroid[0];
       state.view.cy = message.centroid[1];
     }
-    requestAnimationFrame(draw);
+    if (!state.fitted && message.x) fit(message);
+    schedule();
   } else if (message.type === "result") {
     note(message.ok, message.message);
   }
@@ -100,14 +105,34 @@ function drawStatus() {
   $("enable").textContent = f.enabled === false ? "enable" : "disable";
 }
 
+let drawPending = false;
+function schedule() {
+  if (drawPending) return;
+  drawPending = true;
+  requestAnimationFrame(() => { drawPending = false; draw(); });
+}
+
 function draw() {
+  const start = performance.now();
   drawStatus();
   drawArena();
   drawDial();
   drawChart("chart-psi", 1, "force alignment ψ", [0, 1]);
   drawChart("chart-order", 2, "heading order ψ_heading", [0, 1]);
   drawChart("chart-force", 3, "total force F", null);
+  state.draws += 1;
+  state.drawMs += performance.now() - start;
 }
+
+// Colours in a few levels, so that the canvas fills and strokes each level in one path:
+// one call per level instead of one per robot or spring (1000 robots stay fast).
+const LEVELS = 10;
+const level = (value) => Math.min(LEVELS, Math.max(0, Math.round(value * LEVELS)));
+const robotColor = (k) => `hsl(${(120 * k) / LEVELS}, 75%, 42%)`;
+const springColor = (k) => {
+  const a = k / LEVELS;
+  return `rgb(${187 + 24 * a}, ${187 * (1 - a)}, ${187 * (1 - a)})`;
+};
 
 function drawArena() {
   const canvas = $("arena");
@@ -120,16 +145,19 @@ function drawArena() {
   const { cx, cy, scale } = state.view;
   const sx = (x) => w / 2 + (x - cx) * scale;
   const sy = (y) => h / 2 - (y - cy) * scale;
-  // springs, tinted by strain
-  if (state.sheet && f.strain) {
+  // springs, tinted by strain (full red at 30 %)
+  const springs = state.sheet && f.strain && state.sheet.springs.length === f.strain.length;
+  if (springs) {
+    const paths = Array.from({ length: LEVELS + 1 }, () => new Path2D());
     state.sheet.springs.forEach(([i, j], k) => {
-      const a = Math.min(Math.abs(f.strain[k]) / 0.3, 1);
-      ctx.strokeStyle = `rgb(${187 + 24 * a}, ${187 * (1 - a)}, ${187 * (1 - a)})`;
-      ctx.lineWidth = 1 + a;
-      ctx.beginPath();
-      ctx.moveTo(sx(f.x[i]), sy(f.y[i]));
-      ctx.lineTo(sx(f.x[j]), sy(f.y[j]));
-      ctx.stroke();
+      const path = paths[level(Math.abs(f.strain[k]) / 0.3)];
+      path.moveTo(sx(f.x[i]), sy(f.y[i]));
+      path.lineTo(sx(f.x[j]), sy(f.y[j]));
+    });
+    paths.forEach((path, k) => {
+      ctx.strokeStyle = springColor(k);
+      ctx.lineWidth = 1 + k / LEVELS;
+      ctx.stroke(path);
     });
   }
   // the centroid's trail
@@ -140,25 +168,34 @@ function drawArena() {
     f.trail.forEach(([x, y], k) => (k ? ctx.lineTo(sx(x), sy(y)) : ctx.moveTo(sx(x), sy(y))));
     ctx.stroke();
   }
-  // robots: Mona-sized discs coloured by psi_i, a line along the heading
+  // robots: Mona-sized discs (Ø 80 mm) coloured by psi_i, a line along the heading;
+  // silent ones grey with a dashed rim
   const silent = new Set(f.silent || []);
   const r = Math.max(2, 0.04 * scale);
+  const bodies = Array.from({ length: LEVELS + 1 }, () => new Path2D());
+  const grey = new Path2D(), rims = new Path2D(), greyRims = new Path2D();
   for (let i = 0; i < f.x.length; i++) {
     const x = sx(f.x[i]), y = sy(f.y[i]);
-    ctx.fillStyle = silent.has(i) ? "#9e9e9e" : `hsl(${120 * f.psi[i]}, 75%, 42%)`;
-    ctx.beginPath();
-    ctx.arc(x, y, r, 0, 2 * Math.PI);
-    ctx.fill();
-    ctx.strokeStyle = silent.has(i) ? "#616161" : "#212121";
-    ctx.setLineDash(silent.has(i) ? [3, 2] : []);
-    ctx.lineWidth = 1;
-    ctx.stroke();
-    ctx.setLineDash([]);
-    ctx.beginPath();
-    ctx.moveTo(x, y);
-    ctx.lineTo(x + 1.5 * r * Math.cos(f.theta[i]), y - 1.5 * r * Math.sin(f.theta[i]));
-    ctx.stroke();
+    const disc = silent.has(i) ? grey : bodies[level(f.psi[i])];
+    disc.moveTo(x + r, y);
+    disc.arc(x, y, r, 0, 2 * Math.PI);
+    const rim = silent.has(i) ? greyRims : rims;
+    rim.moveTo(x + r, y);
+    rim.arc(x, y, r, 0, 2 * Math.PI);
+    rim.moveTo(x, y);
+    rim.lineTo(x + 1.5 * r * Math.cos(f.theta[i]), y - 1.5 * r * Math.sin(f.theta[i]));
   }
+  bodies.forEach((path, k) => { ctx.fillStyle = robotColor(k); ctx.fill(path); });
+  ctx.fillStyle = "#9e9e9e";
+  ctx.fill(grey);
+  ctx.lineWidth = 1;
+  ctx.strokeStyle = "#212121";
+  ctx.stroke(rims);
+  ctx.strokeStyle = "#616161";
+  ctx.setLineDash([3, 2]);
+  ctx.stroke(greyRims);
+  ctx.setLineDash([]);
+  state.drawn = { robots: f.x.length, springs: springs ? f.strain.length : 0, t: f.t };
   // rotation centre and desired direction
   if (f.center) {
     const x = sx(f.center[0]), y = sy(f.center[1]);
@@ -235,6 +272,16 @@ function drawChart(id, column, label, range) {
   ctx.stroke();
 }
 
+// Zoom so that the whole sheet fills about 60 % of the arena (once per sheet).
+function fit(frame) {
+  const canvas = $("arena");
+  const span = (values) => Math.max(...values) - Math.min(...values);
+  const extent = Math.max(span(frame.x), span(frame.y), 0.2);
+  const size = Math.min(canvas.clientWidth, canvas.clientHeight) || 600;
+  state.view.scale = Math.min(1000, Math.max(5, (0.6 * size) / extent));
+  state.fitted = true;
+}
+
 function note(ok, text) {
   state.results.push({ ok, text });
   const item = document.createElement("li");
@@ -299,12 +346,12 @@ function setup() {
     last = [e.clientX, e.clientY];
     state.view.follow = false;
     $("follow").checked = false;
-    draw();
+    schedule();
   });
   arena.addEventListener("wheel", (e) => {
     e.preventDefault();
     state.view.scale = Math.min(5000, Math.max(5, state.view.scale * Math.pow(1.1, -e.deltaY / 100)));
-    draw();
+    schedule();
   }, { passive: false });
   $("follow").addEventListener("change", () => { state.view.follow = $("follow").checked; });
   connect();

@@ -6,6 +6,7 @@
   publish nothing; α = −5 is refused by the robot nodes with their reason and α
   stays; disabling stops the robots; pause and resume stop and restart sim time;
   control messages are rate-limited;
+- robots whose host was killed are shown silent (the bridge's ``/diagnostics``);
 - ``/swarm/markers`` is published only while subscribed, at most 10 Hz, and a
   ``--record`` bag holds it;
 - 20 viewers at once do not slow the swarm;
@@ -15,6 +16,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import time
@@ -26,7 +28,7 @@ import numpy as np
 import pytest
 from geometry_msgs.msg import Twist
 from helpers.dashboard import Viewers, dashboard_url, launch_with_dashboard, local
-from helpers.ros_env import wait_for
+from helpers.ros_env import find_process, wait_for
 from visualization_msgs.msg import MarkerArray
 
 from aes_ros.ros import interface as names
@@ -118,6 +120,27 @@ def test_a_viewer_watches_and_steers_the_swarm(spawn, probe, tmp_path):
         refused = [r for r in results if not r["ok"]]
         assert refused and all("too many" in r["message"] for r in refused)
         assert len(refused) <= 40 - 20
+    finally:
+        viewer.close()
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(60) == 0
+
+
+def test_a_dead_robot_host_shows_its_robots_silent(spawn, probe, ros_env, tmp_path):
+    launcher, url = launch_with_dashboard(
+        spawn, tmp_path / "out", N, "--layout", "per-core", "--on-failure", "continue"
+    )
+    probe.sample_poses(N)
+    probe.wait_all_moving()
+    viewer = Viewers(url)
+    try:
+        probe.wait(lambda: viewer.frames[0], 10.0, "a frame")
+        probe.wait(lambda: viewer.latest()["silent"] == [], 10.0, "every robot heard")
+        host_1 = list(range(5, N))  # 9 robots on 2 hosts: 0..4 and 5..8
+        os.kill(find_process(ros_env["ROS_DOMAIN_ID"], "robot_host_1"), signal.SIGKILL)
+        killed = time.monotonic()
+        probe.wait(lambda: viewer.latest()["silent"] == host_1, 5.0, "robots 5..8 silent")
+        print(f"\nsilent in the page {time.monotonic() - killed:.1f} s after the kill")
     finally:
         viewer.close()
     launcher.send_signal(signal.SIGINT)

@@ -319,6 +319,7 @@ def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
         "scenario": str(scenario_file),
         "host": "127.0.0.1",
         "port": int(config.dashboard or 0),
+        "label": config.label,
         "use_sim_time": True,
     }
     return ProcessSpec(names.DASHBOARD_NODE, ["aes-dashboard", *ros_args(params)])

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from aes_ros import scenario
+from aes_ros.ros.diagnostics import robots_status, silent_robots
 from aes_ros.ros.markers import BODY_DIAMETER, swarm_markers
 from dashboard_node.controls import (
     MAX_MESSAGE_BYTES,
@@ -21,7 +22,8 @@ from dashboard_node.controls import (
     parse_control,
 )
 from dashboard_node.server import needs_token
-from dashboard_node.view import SILENT_AFTER, SwarmView, spring_strains
+from dashboard_node.view import SwarmView, spring_strains
+from sim_bridge.lockstep import LockstepBarrier
 
 
 def test_valid_controls_parse_to_what_they_ask() -> None:
@@ -86,9 +88,7 @@ def _view(n: int = 9) -> tuple[SwarmView, np.ndarray]:
 def test_frame_has_every_robot_and_the_sheet_every_spring() -> None:
     view, pos = _view(9)
     view.on_poses(1.0, pos, np.zeros(9))
-    for i in range(9):
-        view.on_robot_command(i, wall=10.0)
-    frame = json.loads(json.dumps(view.frame(10.0)))  # what the page gets is JSON
+    frame = json.loads(json.dumps(view.frame()))  # what the page gets is JSON
     sheet = view.sheet_message()
     assert frame["n"] == sheet["n"] == 9
     assert len(frame["x"]) == len(frame["psi"]) == 9
@@ -100,14 +100,29 @@ def test_frame_has_every_robot_and_the_sheet_every_spring() -> None:
     assert frame["centroid"] == pytest.approx(pos.mean(axis=0).tolist(), abs=1e-4)
 
 
-def test_robots_not_heard_from_are_silent() -> None:
+def test_silent_robots_come_from_the_bridges_diagnostics() -> None:
+    from builtin_interfaces.msg import Time
+    from diagnostic_msgs.msg import DiagnosticStatus
+
     view, pos = _view(4)
     view.on_poses(0.5, pos, np.zeros(4))
-    for i in (0, 1, 3):
-        view.on_robot_command(i, wall=100.0)
-    view.on_robot_command(2, wall=100.0 - 2 * SILENT_AFTER)
-    assert view.frame(100.0)["silent"] == [2]
-    assert view.frame(100.0 + 2 * SILENT_AFTER)["silent"] == [0, 1, 2, 3]
+    msg = robots_status(4, [2], Time())
+    assert msg.status[0].level == DiagnosticStatus.WARN and "1 silent" in msg.status[0].message
+    view.on_silent(silent_robots(msg))
+    assert view.frame()["silent"] == [2]
+    view.on_silent(silent_robots(robots_status(4, [], Time())))
+    assert view.frame()["silent"] == []
+    other = robots_status(4, [1], Time())
+    other.status[0].name = "some other node"
+    assert silent_robots(other) is None  # not the bridge's: ignored
+
+
+def test_the_bridge_counts_robots_silent_since_their_last_command() -> None:
+    barrier = LockstepBarrier(3)
+    barrier.arrived(0, now=10.0)
+    barrier.arrived(1, now=9.0)
+    assert barrier.silent(now=10.5, after=1.0).tolist() == [1, 2]  # 2: never heard
+    assert barrier.silent(now=11.0, after=1.0).tolist() == [0, 1, 2]
 
 
 def test_spring_strain_is_relative_stretch() -> None:
@@ -135,7 +150,7 @@ def test_a_new_size_makes_a_new_sheet() -> None:
     pos16 = scenario.load("linear").with_robots(16).nominal_positions()
     view.on_poses(0.0, pos16, np.zeros(16))
     assert view.sheet_message()["n"] == 16
-    assert len(view.frame(0.0)["x"]) == 16
+    assert len(view.frame()["x"]) == 16
 
 
 def test_markers_are_in_odom_with_mona_bodies_and_spring_lines() -> None:
@@ -146,7 +161,7 @@ def test_markers_are_in_odom_with_mona_bodies_and_spring_lines() -> None:
     for step in range(20):
         view.on_poses(0.1 * step, pos + np.array([0.0, 0.01 * step]), np.full(9, math.pi / 2))
     sheet = view.sheet_message()
-    markers = swarm_markers(view.frame(0.0), sheet["springs"], Time(sec=2)).markers
+    markers = swarm_markers(view.frame(), sheet["springs"], Time(sec=2)).markers
     assert {m.header.frame_id for m in markers} == {"odom"}
     bodies = [m for m in markers if m.ns == "bodies"]
     assert len(bodies) == 9
