@@ -1,0 +1,141 @@
+"""The dashboard page in a real browser (headless Chromium driven by Selenium) against a
+real swarm, checked by a ROS probe. Each test saves screenshots in its temporary directory.
+
+- the page draws all N robots within 5 s of the swarm moving; clicking north on the
+  dial turns ``/swarm/desired_velocity`` north and the centroid then heads north;
+  α = −5 typed in the page is refused with the node's reason and α stays; the
+  disable button stops the robots;
+- bound to a non-loopback address, the page without the token gets 401 and cannot
+  control anything; with the token in the URL it can.
+"""
+
+from __future__ import annotations
+
+import re
+import signal
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from geometry_msgs.msg import Twist
+from helpers import browser
+from helpers.dashboard import dashboard_url, launch_with_dashboard, local
+
+from aes_ros.ros import interface as names
+from aes_ros.ros.qos import COMMAND
+
+WHY_NOT = browser.unavailable()
+pytestmark = pytest.mark.skipif(WHY_NOT is not None, reason=str(WHY_NOT))
+
+N = 16
+
+
+@pytest.fixture
+def chromium(tmp_path: Path):
+    driver = browser.headless_chromium()
+    shots = iter(range(100))
+
+    def screenshot(what: str) -> Path:
+        path = tmp_path / f"{next(shots):02d}-{what}.png"
+        driver.save_screenshot(str(path))
+        return path
+
+    driver.screenshot = screenshot
+    try:
+        yield driver
+    finally:
+        driver.quit()
+
+
+def messages(driver, kind: str) -> list[str]:
+    """The page's message list: ``ok`` or ``error`` entries, newest first."""
+    from selenium.webdriver.common.by import By
+
+    return [li.text for li in driver.find_elements(By.CSS_SELECTOR, f"#messages li.{kind}")]
+
+
+def test_the_page_shows_and_steers_the_swarm(spawn, probe, chromium, tmp_path):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    launcher, url = launch_with_dashboard(spawn, tmp_path / "out", N)
+    probe.sample_poses(N)
+    chromium.get(url)
+    probe.wait_all_moving()
+    moving = time.monotonic()
+
+    # every robot drawn within 5 s of the swarm moving
+    def drawn() -> bool:
+        state = browser.page_state(chromium)
+        return bool(state and state["drawn"] and state["drawn"]["robots"] == N)
+
+    probe.wait(drawn, 5.0 - (time.monotonic() - moving), f"the page drawing {N} robots")
+    state = browser.page_state(chromium)
+    assert state["drawn"]["springs"] > N and state["drawn"]["t"] > 0
+    chromium.screenshot("all-robots")
+
+    # north on the dial: the command, then the motion
+    dial = chromium.find_element(By.ID, "dial")
+    ActionChains(chromium).move_to_element_with_offset(dial, 0, -65).click().perform()
+    probe.wait(
+        lambda: probe.desired and probe.desired[-1].twist.linear.y > 0.8,
+        10.0,
+        "/swarm/desired_velocity north",
+    )
+    assert abs(probe.desired[-1].twist.linear.x) < 0.05
+    t1 = probe.now
+    probe.wait_sim(t1 + 6.0)
+    d = probe.position_at(t1 + 6.0).mean(axis=0) - probe.position_at(t1 + 3.0).mean(axis=0)
+    assert d[1] / np.linalg.norm(d) > 0.9, d
+    chromium.screenshot("north")
+
+    # alpha = -5: the robot nodes' own reason in the page, alpha unchanged
+    alpha = probe.get_parameters(names.SUPERVISOR_NODE, ["alpha"])[0]
+    field = chromium.find_element(By.ID, "gain-alpha")
+    field.send_keys("-5")
+    field.find_element(By.XPATH, "following-sibling::button").click()
+    probe.wait(lambda: messages(chromium, "error"), 10.0, "the page's error")
+    assert "out of range" in messages(chromium, "error")[0]
+    robots = [f"{names.robot_namespace(i)}/{names.ROBOT_NODE}" for i in (0, N - 1)]
+    assert all(probe.get_parameters(r, ["alpha"]) == [alpha] for r in robots)
+    chromium.screenshot("alpha-refused")
+
+    # disable: the robots stop
+    chromium.find_element(By.ID, "enable").click()
+    probe.wait(lambda: "disabled" in chromium.find_element(By.ID, "status").text, 10.0, "disabled")
+    t2 = probe.now + 1.0
+    probe.wait_sim(t2 + 2.0)
+    assert np.abs(probe.position_at(t2 + 2.0) - probe.position_at(t2)).max() < 1e-3
+    chromium.screenshot("disabled")
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(60) == 0
+
+
+def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    dashboard = spawn.start(
+        "aes-swarm", "dashboard", "--setup", "linear", "--robots", "4", "--host", "0.0.0.0",
+        "--port", "0", name="dashboard",
+    )  # fmt: skip
+    url = dashboard_url(spawn, dashboard)
+    commands = probe.record(Twist, names.CMD, COMMAND)
+
+    chromium.get(local(url).split("?")[0])  # no token
+    assert "401" in chromium.find_element(By.TAG_NAME, "body").text
+    assert browser.page_state(chromium) is None  # no page, no script, no control
+    chromium.get(re.sub(r"token=[\w-]+", "token=guessed", local(url)))
+    assert "401" in chromium.find_element(By.TAG_NAME, "body").text
+    chromium.screenshot("refused")
+    time.sleep(1.0)
+    assert commands == []
+
+    chromium.get(local(url))
+    probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
+    dial = chromium.find_element(By.ID, "dial")
+    ActionChains(chromium).move_to_element_with_offset(dial, 65, 0).click().perform()
+    probe.wait(lambda: commands, 10.0, "/swarm/cmd from the page")
+    assert commands[-1].linear.x > 0.8 and abs(commands[-1].linear.y) < 0.05
+    chromium.screenshot("with-token")
