@@ -97,18 +97,22 @@ class ByteCounter:
         self.url = "ws" + url.split("?")[0].removeprefix("http").rstrip("/") + "/ws"
         self.bytes = 0
         self.frames = 0
+        self.ws: aiohttp.ClientWebSocketResponse | None = None
         self.loop = asyncio.new_event_loop()
         threading.Thread(target=self.loop.run_forever, daemon=True).start()
         self.task = asyncio.run_coroutine_threadsafe(self._read(), self.loop)
 
     async def _read(self) -> None:
         async with aiohttp.ClientSession() as session, session.ws_connect(self.url) as ws:
+            self.ws = ws
             async for message in ws:
                 self.bytes += len(message.data)
                 self.frames += message.data.startswith('{"type": "frame"')
 
     def close(self) -> None:
-        self.task.cancel()
+        if self.ws is not None:
+            asyncio.run_coroutine_threadsafe(self.ws.close(), self.loop).result(10)
+            self.task.result(10)  # the reader ends with its socket
         self.loop.call_soon_threadsafe(self.loop.stop)
 
 
@@ -169,6 +173,7 @@ def fed_page(n: int, seconds: float, work: Path) -> tuple[float, float]:
     from aes_ros.ros.conversions import arrays_to_poses
     from aes_ros.ros.qos import STREAM_WRITER
 
+    print(f"the page alone, {n} robots …", flush=True)
     sc = scenario.load("linear").with_robots(n)
     scenario_file = write_scenario(sc, work / f"sheet_{n}.yaml")
     log = work / f"dashboard_{n}.log"

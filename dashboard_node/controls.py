@@ -24,11 +24,12 @@ from dataclasses import dataclass
 from typing import Any
 
 from aes_ros.params import PARAMS, ParameterError
+from dashboard_node.view import GAIN_NAMES
 
 #: The longest control message accepted [bytes].
 MAX_MESSAGE_BYTES = 4096
 #: The gains a viewer may set.
-GAINS = ("alpha", "beta", "k", "w_l", "w_r")
+GAINS = GAIN_NAMES
 SIM_ACTIONS = ("pause", "resume", "reset")
 
 

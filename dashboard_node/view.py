@@ -25,6 +25,8 @@ from aes_ros.scenario import Scenario
 
 #: Sim seconds of metrics history and centroid trail kept (the strip charts' span).
 HISTORY_S = 60.0
+#: The gains shown (and set) in the page.
+GAIN_NAMES = ("alpha", "beta", "k", "w_l", "w_r")
 #: Digits kept in a frame (0.1 mm, 1 mrad): enough to draw, small to send.
 DIGITS = 4
 
@@ -144,6 +146,7 @@ class SwarmView:
             "silent": self.silent,
             "direction": [_r(v) for v in self.command.direction],
             "omega": _r(self.command.omega),
+            "gains": {name: _r(getattr(self.gains, name)) for name in GAIN_NAMES},
             "metrics": {k: _r(v) for k, v in self.metrics.items()},
         }
         if self.positions is None:

@@ -16,7 +16,8 @@ const state = {
   drawn: null,             // what the last picture showed: {robots, springs, t}
   history: [],            // [t, psi, psi_heading, F]
   view: { cx: 0, cy: 0, scale: 300, follow: true },
-  direction: [0, 0],
+  direction: [0, 0],      // the dial: the swarm's command until the user steers
+  steered: false,
   connected: false,
   results: [],
 };
@@ -63,6 +64,11 @@ function receive(message) {
       state.view.cy = message.centroid[1];
     }
     if (!state.fitted && message.x) fit(message);
+    if (!state.steered && message.direction) state.direction = message.direction;
+    for (const [name, value] of Object.entries(message.gains || {})) {
+      const field = $(`gain-${name}`);
+      if (field) field.placeholder = value == null ? "" : String(value);
+    }
     schedule();
   } else if (message.type === "result") {
     note(message.ok, message.message);
@@ -293,6 +299,7 @@ function note(ok, text) {
 // --------------------------------------------------------------------- controls
 
 function setDirectionFrom(event) {
+  state.steered = true;  // from now on the dial shows what the user chose
   const canvas = $("dial");
   const rect = canvas.getBoundingClientRect();
   const R = canvas.width / 2 - 8, c = canvas.width / 2;
@@ -313,7 +320,11 @@ function setup() {
   dial.addEventListener("pointerdown", (e) => { dragging = true; setDirectionFrom(e); });
   dial.addEventListener("pointermove", (e) => dragging && setDirectionFrom(e));
   dial.addEventListener("pointerup", () => { dragging = false; sendDrive(); });
-  $("stop-drive").addEventListener("click", () => { state.direction = [0, 0]; sendDrive(); });
+  $("stop-drive").addEventListener("click", () => {
+    state.steered = true;
+    state.direction = [0, 0];
+    sendDrive();
+  });
   $("omega").addEventListener("input", () => { $("omega-value").textContent = $("omega").value; });
   $("omega").addEventListener("change", sendDrive);
   $("enable").addEventListener("click", () =>
