@@ -27,8 +27,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="robots of the swarm (a near-square grid of the scenario; default: as its poses say)",
     )  # fmt: skip
     p.add_argument(
-        "--port", type=number_type(int, 0), default=8080, help="web server port (default 8080)"
-    )
+        "--port", type=number_type(int, 0, 65535), default=8080,
+        help="web server port (default 8080; 0: any free one)",
+    )  # fmt: skip
     p.add_argument(
         "--host", default="127.0.0.1",
         help="address to listen on (default 127.0.0.1; any other needs the token)",

@@ -69,7 +69,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "stop the run; every fault goes to OUT/events.csv",
     )  # fmt: skip
     p.add_argument(
-        "--dashboard", nargs="?", const=8080, default=None, type=number_type(int, 0),
+        "--dashboard", nargs="?", const=8080, default=None, type=number_type(int, 0, 65535),
         metavar="PORT",
         help="also start the browser dashboard on http://127.0.0.1:PORT/ (default 8080; "
         "0: any free port) and print its URL",

@@ -73,9 +73,12 @@ def scenario_label(args: argparse.Namespace) -> str:
     return args.scenario.stem if args.scenario is not None else args.setup
 
 
-def number_type(kind: type = float, minimum: float | None = None) -> Callable[[str], int | float]:
+def number_type(
+    kind: type = float, minimum: float | None = None, maximum: float | None = None
+) -> Callable[[str], int | float]:
     """An argparse ``type``: a finite number of ``kind`` (int or float), at least
-    ``minimum`` if given; argparse's error names the option, this says what is allowed."""
+    ``minimum`` and at most ``maximum`` if given; argparse's error names the option, this
+    says what is allowed."""
     noun = "an integer" if kind is int else "a number"
 
     def parse(text: str) -> int | float:
@@ -87,6 +90,8 @@ def number_type(kind: type = float, minimum: float | None = None) -> Callable[[s
             raise argparse.ArgumentTypeError(f"{text!r} is not finite")
         if minimum is not None and value < minimum:
             raise argparse.ArgumentTypeError(f"need {noun} >= {minimum:g}, got {text}")
+        if maximum is not None and value > maximum:
+            raise argparse.ArgumentTypeError(f"need {noun} <= {maximum:g}, got {text}")
         return value
 
     return parse

@@ -17,6 +17,7 @@ import pytest
 
 import aes_ros.ros.launch
 import aes_ros.ros.steering
+import dashboard_node.node
 from aes_ros import scenario
 from aes_ros.cli import main
 from aes_ros.params import PARAMS
@@ -137,18 +138,22 @@ def test_params_lists_every_parameter_with_its_range(aes_swarm) -> None:
         (["launch", "--setup", "spiral"], "--setup"),
         (["steer"], "--direction"),
         (["steer", "--omega", "nan"], "--omega"),
+        (["launch", "--dashboard", "70000"], "--dashboard"),
+        (["dashboard", "--port", "-1"], "--port"),
+        (["dashboard", "--robots", "0"], "--robots"),
     ],
 )
 def test_bad_arguments_exit_2_naming_the_option(
     monkeypatch: pytest.MonkeyPatch, aes_swarm, args: list[str], option: str
 ) -> None:
-    """``launch`` and ``steer`` reject bad arguments before they start anything."""
+    """``launch``, ``steer`` and ``dashboard`` reject bad arguments before they start anything."""
 
     def must_not_run(*_args, **_kwargs):
         raise AssertionError(f"aes-swarm {args[0]} went on with bad arguments")
 
     monkeypatch.setattr(aes_ros.ros.launch, "launch", must_not_run)
     monkeypatch.setattr(aes_ros.ros.steering, "steer", must_not_run)
+    monkeypatch.setattr(dashboard_node.node, "main", must_not_run)
     out = aes_swarm(*args)
     assert out.returncode == 2, out
     assert option in out.stderr
