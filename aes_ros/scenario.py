@@ -30,6 +30,9 @@ class Scenario:
     values: dict[str, Any]
 
     def __getattr__(self, name: str) -> Any:
+        if name == "values" or name.startswith("__"):
+            # not set yet (unpickling, copying): no recursion into self.values
+            raise AttributeError(name)
         try:
             return self.values[name]
         except KeyError:

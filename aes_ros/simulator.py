@@ -50,6 +50,8 @@ class SimResult:
     positions : (B, T+1, N, 2) [m] and headings : (B, T+1, N) [rad], or None when
         not recorded.
     neighbors, rest_lengths : the sheet, (N, K).
+    final_positions : (B, N, 2) [m] and final_headings : (B, N) [rad], the state at
+        T·Δt (kept also when not recorded).
     """
 
     times: np.ndarray
@@ -58,6 +60,8 @@ class SimResult:
     headings: np.ndarray | None
     neighbors: np.ndarray
     rest_lengths: np.ndarray
+    final_positions: np.ndarray | None = None
+    final_headings: np.ndarray | None = None
 
     def metric(self, name: str) -> np.ndarray:
         """One metric, (B, T+1)."""
@@ -154,7 +158,7 @@ def simulate(
     if record:
         pos_hist[:, T], head_hist[:, T] = pos, head
     times = np.arange(T + 1) * scenario.dt
-    return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest)
+    return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest, pos, head)
 
 
 def _group_by_gains(run_gains: list[Gains]) -> list[tuple[np.ndarray, Gains]]:
