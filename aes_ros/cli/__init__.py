@@ -22,6 +22,7 @@ COMMANDS: dict[str, str] = {
     "params": "list the scenario parameters (name, default, range)",
     "optimize": "tune alpha, beta, k with TCACS on the Monte-Carlo cost J (E10)",
     "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
+    "sweep": "the offline simulator over a grid or Latin hypercube of parameters (local or Dask)",
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
     "dashboard": "watch and steer the running swarm in the browser",
@@ -40,6 +41,10 @@ DESCRIPTIONS: dict[str, str] = {
     "(1/N,-10) (and k free down to 0), restarted with independent seeds, then every gain "
     "set re-simulated on held-out seeds. Writes effect_of_optimisation.png, "
     "convergence.png, j_slices.png, table.csv, runs.csv, study.json and study.md.",
+    "sweep": "Simulate every point of a parameter grid (or of a Latin hypercube) with --mc "
+    "Monte-Carlo runs each, with common random numbers, batched into the numba simulator; "
+    "on the local cores, local Dask workers or a Dask cluster. Writes runs.csv (one row per "
+    "point and run), points.csv, sweep_metrics.png and sweep.json; resumable.",
     "launch": "Start aes-sim-bridge, aes-supervisor and the robot nodes as separate "
     "processes, wait until every robot moves, run for --duration seconds of sim time "
     "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "

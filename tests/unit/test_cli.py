@@ -157,3 +157,37 @@ def test_bad_arguments_exit_2_naming_the_option(
     out = aes_swarm(*args)
     assert out.returncode == 2, out
     assert option in out.stderr
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["--param", "gamma=0:1:3"], "gamma"),
+        (["--param", "alpha=0.3:0.1:3"], "alpha: the range 0.3:0.1 is empty"),
+        (["--param", "k=0:500:3"], "k: 500 is out of range; allowed [0, 100]"),
+        (["--param", "alpha=0:1"], "alpha: a grid needs a count"),
+        (["--param", "alpha=0:1:3", "--transient", "99"], "--transient 99"),
+        (["--param", "alpha=0:1:3", "--workers", "2", "--scheduler", "tcp://x:1"], "--scheduler"),
+    ],
+)
+def test_bad_sweep_specs_exit_2_naming_the_field(
+    tmp_path: Path, aes_swarm, args: list[str], field: str
+) -> None:
+    out = aes_swarm("sweep", "--setup", "linear", "--duration", "5", "--out", str(tmp_path), *args)
+    assert out.returncode == 2, out
+    assert field in out.stderr
+    assert not (tmp_path / "runs.csv").exists()
+
+
+def test_sweep_writes_its_table_and_resumes(tmp_path: Path, aes_swarm) -> None:
+    args = ["sweep", "--setup", "linear", "--robots", "9", "--duration", "2", "--mc", "2",
+            "--param", "beta=0.5,1", "--no-progress", "--out", str(tmp_path)]  # fmt: skip
+    first = aes_swarm(*args)
+    assert first.returncode == 0, first
+    with open(tmp_path / "runs.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(r["point"], r["run"], r["beta"]) for r in rows] == [
+        ("0", "0", "0.5"), ("0", "1", "0.5"), ("1", "0", "1.0"), ("1", "1", "1.0")
+    ]  # fmt: skip
+    again = aes_swarm(*args)
+    assert "2 done before, 0 tasks" in again.stdout

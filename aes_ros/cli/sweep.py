@@ -1,0 +1,100 @@
+"""``aes-swarm sweep``: the offline simulator over a grid or a Latin hypercube of parameters.
+
+Examples::
+
+    aes-swarm sweep --param alpha=0.01:0.2:20 --param k=log:0.05:5:20 --mc 10 --out out/ak
+    aes-swarm sweep --param d_r=0:2:9 --param robots=25,100,400 --duration 60 --transient 20 \\
+        --out out/noise
+    aes-swarm sweep --lhs 200 --param alpha=0.01:0.5 --param beta=0.1:5 --param k=log:0.05:5 \\
+        --out out/lhs --scheduler tcp://head:8786
+
+Writes ``runs.csv`` (one row per point and run), ``points.csv`` (per point),
+``sweep_metrics.png`` and ``sweep.json`` to ``--out``; re-running the same command
+after an interruption skips the points already done (:mod:`aes_ros.sweep.engine`).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from aes_ros.cli.options import (
+    add_monte_carlo_option,
+    add_scenario_options,
+    load_scenario,
+    number_type,
+)
+from aes_ros.params import PARAMS
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--param", action="append", default=[], metavar="NAME=SPEC", required=True,
+        help="a swept parameter (repeatable): NAME=low:high:n, NAME=log:low:high:n, "
+        "NAME=v1,v2,… or, with --lhs, NAME=low:high; NAME is a scenario parameter "
+        "(`aes-swarm params`) or robots",
+    )  # fmt: skip
+    p.add_argument(
+        "--lhs", type=number_type(int, 1), default=None, metavar="N",
+        help="N Latin-hypercube samples of the --param ranges instead of the grid",
+    )  # fmt: skip
+    add_scenario_options(p)
+    p.add_argument(
+        "--robots", type=number_type(int, 1), default=None,
+        help="robots of every point (a near-square grid) unless robots is swept",
+    )  # fmt: skip
+    add_monte_carlo_option(p)
+    p.add_argument(
+        "--duration", type=number_type(float, 0), default=None,
+        help=f"run length [s] ({PARAMS['duration'].allowed()})",
+    )  # fmt: skip
+    p.add_argument(
+        "--transient", type=number_type(float, 0), default=0.0,
+        help="sim seconds left out of the time averages ψ̄, ψ̄_heading, F̄/N (default 0)",
+    )  # fmt: skip
+    p.add_argument("--seed", type=int, default=0, help="first Monte-Carlo seed (and the LHS's)")
+    p.add_argument("--out", type=Path, required=True, help="output directory (resumable)")
+    p.add_argument(
+        "--scheduler", default=None, metavar="ADDRESS",
+        help="run on this Dask cluster (tcp://HOST:8786) instead of the local cores",
+    )  # fmt: skip
+    p.add_argument(
+        "--workers", type=number_type(int, 1), default=None, metavar="K",
+        help="run on a local Dask cluster of K worker processes",
+    )  # fmt: skip
+    p.add_argument(
+        "--points-per-task", type=number_type(int, 1), default=4, metavar="P",
+        help="points simulated in one batch (one task; default 4)",
+    )  # fmt: skip
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from aes_ros.sweep.engine import Sweep, execute
+    from aes_ros.sweep.spec import SweepSpecError, parse_axis, points
+
+    if args.scheduler is not None and args.workers is not None:
+        raise SweepSpecError("--scheduler and --workers: give one of them")
+    base = load_scenario(args)
+    if args.robots is not None:
+        base = base.with_robots(args.robots)
+    axes = [parse_axis(text) for text in args.param]
+    sweep = Sweep(
+        base,
+        axes,
+        points(axes, args.lhs, args.seed),
+        mc=args.mc,
+        seed=args.seed,
+        transient=args.transient,
+        lhs=args.lhs,
+    )
+    summary = execute(
+        sweep,
+        args.out,
+        scheduler=args.scheduler,
+        workers=args.workers,
+        points_per_task=args.points_per_task,
+        progress=not args.no_progress,
+    )
+    print(f"sweep done: {len(sweep.points)} points; {summary} and {args.out / 'runs.csv'}")
+    return 0

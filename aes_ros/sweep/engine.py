@@ -1,0 +1,267 @@
+"""Running a sweep: here, on local Dask workers or on a Dask cluster; resumable; written as it goes.
+
+``DIR/sweep.json`` says what the sweep is (scenario, axes, points, seeds); a run of
+``aes-swarm sweep`` into a directory that holds another sweep is refused.
+``DIR/runs.csv`` (one row per point and Monte-Carlo run, :mod:`aes_ros.sweep.runs`)
+grows as tasks finish, flushed each time, so an interrupted sweep keeps every
+finished point and a re-run skips them. At the end ``runs.csv`` is sorted by point
+and run, ``points.csv`` has one row per point (mean and standard deviation of each
+metric over its runs) and the figures are drawn (:mod:`aes_ros.sweep.figures`).
+
+Where the tasks run:
+
+- default: in this process, one after the other; the numba kernel spreads each
+  task's runs over the local cores;
+- ``workers=K``: a local Dask cluster of K worker processes (one thread each, the
+  cores shared out among them);
+- ``scheduler="tcp://HOST:8786"``: an existing Dask cluster (``dask scheduler``,
+  ``dask worker``); its workers need this package installed. A worker lost mid-sweep
+  costs only its tasks, which Dask runs again elsewhere.
+
+Every point's numbers depend only on its parameters and the seeds, so the three
+give identical tables.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from aes_ros.scenario import Scenario
+from aes_ros.sweep.runs import RUN_COLUMNS, Task, make_tasks, run_task
+from aes_ros.sweep.spec import Axis, SweepSpecError
+
+SPEC_FILE, RUNS_FILE, POINTS_FILE = "sweep.json", "runs.csv", "points.csv"
+
+
+@dataclass
+class Sweep:
+    """One sweep: the base scenario, its axes and points, the Monte-Carlo seeds.
+
+    points : (P, len(axes)) swept values. seeds : seed, seed+1, …, seed+mc−1 for
+    every point. transient : sim seconds left out of the time averages.
+    """
+
+    base: Scenario
+    axes: list[Axis]
+    points: np.ndarray
+    mc: int = 10
+    seed: int = 0
+    transient: float = 0.0
+    lhs: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.mc < 1:
+            raise SweepSpecError(f"--mc {self.mc}: need at least 1 run per point")
+        if not 0.0 <= self.transient < self.base.duration:
+            raise SweepSpecError(
+                f"--transient {self.transient:g}: need 0 <= transient < duration "
+                f"({self.base.duration:g} s)"
+            )
+
+    @property
+    def names(self) -> list[str]:
+        return [a.name for a in self.axes]
+
+    @property
+    def seeds(self) -> list[int]:
+        return list(range(self.seed, self.seed + self.mc))
+
+    def description(self) -> dict[str, Any]:
+        """What sweep.json holds (plain JSON values)."""
+        return json.loads(
+            json.dumps(
+                {
+                    "scenario": self.base.values,
+                    "axes": [a.__dict__ for a in self.axes],
+                    "points": self.points.tolist(),
+                    "mc": self.mc,
+                    "seed": self.seed,
+                    "transient": self.transient,
+                    "lhs": self.lhs,
+                },
+                default=list,
+            )
+        )
+
+
+def _columns(sweep: Sweep) -> list[str]:
+    return ["point", "run", "seed", *sweep.names, *RUN_COLUMNS]
+
+
+def prepare(sweep: Sweep, out: Path) -> set[int]:
+    """Create or check ``out``; the points already finished there (all their runs)."""
+    out.mkdir(parents=True, exist_ok=True)
+    spec = out / SPEC_FILE
+    mine = sweep.description()
+    if spec.exists():
+        theirs = json.loads(spec.read_text())
+        if theirs != mine:
+            differ = sorted(k for k in mine if theirs.get(k) != mine[k])
+            raise SweepSpecError(
+                f"--out {out}: holds another sweep (its {SPEC_FILE} differs in "
+                f"{', '.join(differ)}); give another --out or remove it"
+            )
+    else:
+        spec.write_text(json.dumps(mine, indent=1))
+    runs = out / RUNS_FILE
+    if not runs.exists():
+        return set()
+    with runs.open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    counts: dict[int, int] = {}
+    for row in rows:
+        counts[int(row["point"])] = counts.get(int(row["point"]), 0) + 1
+    done = {p for p, c in counts.items() if c == sweep.mc}
+    if len(done) != len(counts):  # a point cut short while written: run it again
+        _write_rows(runs, _columns(sweep), [r for r in rows if int(r["point"]) in done])
+    return done
+
+
+def _write_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> None:
+    tmp = path.with_suffix(".tmp")
+    with tmp.open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, columns)
+        writer.writeheader()
+        writer.writerows(rows)
+    tmp.replace(path)
+
+
+def _local(sweep: Sweep, tasks: list[Task]) -> Iterator[list[dict[str, Any]]]:
+    for task in tasks:
+        yield _run(sweep, task)
+
+
+def _run(sweep: Sweep, task: Task) -> list[dict[str, Any]]:
+    values = sweep.points[list(task.indices)]
+    return run_task(sweep.base, sweep.names, task.indices, values, sweep.seeds, sweep.transient)
+
+
+def _dask(
+    sweep: Sweep, tasks: list[Task], scheduler: str | None, workers: int | None
+) -> Iterator[list[dict[str, Any]]]:
+    from dask.distributed import Client, LocalCluster, as_completed
+
+    if scheduler is not None:
+        client = Client(scheduler, timeout="30s")
+        cluster = None
+    else:
+        threads = max(1, (os.cpu_count() or 1) // int(workers or 1))
+        cluster = LocalCluster(
+            n_workers=int(workers or 1),
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            env={"NUMBA_NUM_THREADS": str(threads)},
+        )
+        client = Client(cluster)
+    try:
+        futures = [
+            client.submit(
+                run_task,
+                sweep.base,
+                sweep.names,
+                t.indices,
+                sweep.points[list(t.indices)],
+                sweep.seeds,
+                sweep.transient,
+                key=f"aes-sweep-{t.indices[0]}-{len(t.indices)}",
+                pure=False,
+            )
+            for t in tasks
+        ]
+        for future in as_completed(futures):
+            yield future.result()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def execute(
+    sweep: Sweep,
+    out: Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    points_per_task: int = 4,
+    progress: bool = True,
+    say: Callable[[str], None] = print,
+) -> Path:
+    """Run every point of ``sweep`` not yet in ``out``; write the outputs; returns
+    the path of ``points.csv``."""
+    done = prepare(sweep, out)
+    tasks = make_tasks(sweep.names, sweep.points, done, points_per_task)
+    where = (
+        f"on {scheduler}"
+        if scheduler
+        else f"on {workers} local Dask workers"
+        if workers
+        else "here"
+    )
+    say(
+        f"sweep: {len(sweep.points)} points x {sweep.mc} runs, {len(done)} done before, "
+        f"{len(tasks)} tasks {where}; outputs in {out}"
+    )
+    runs = out / RUNS_FILE
+    fresh = not runs.exists()
+    source = _local(sweep, tasks) if scheduler is None and not workers else None
+    if source is None:
+        source = _dask(sweep, tasks, scheduler, workers)
+    bar = tqdm(
+        total=len(sweep.points), initial=len(done), unit="point", disable=not progress,
+        desc="sweep",
+    )  # fmt: skip
+    with runs.open("a", newline="") as fh:
+        writer = csv.DictWriter(fh, _columns(sweep))
+        if fresh:
+            writer.writeheader()
+        for rows in source:
+            writer.writerows(rows)
+            fh.flush()
+            os.fsync(fh.fileno())
+            bar.update(len(rows) // sweep.mc)
+    bar.close()
+    return finish(sweep, out)
+
+
+def finish(sweep: Sweep, out: Path) -> Path:
+    """Sort ``runs.csv``, write ``points.csv`` and the figures."""
+    from aes_ros.sweep.figures import plot_sweep
+
+    with (out / RUNS_FILE).open(newline="") as fh:
+        rows = sorted(csv.DictReader(fh), key=lambda r: (int(r["point"]), int(r["run"])))
+    _write_rows(out / RUNS_FILE, _columns(sweep), rows)
+    summary = summarize(sweep, rows)
+    columns = ["point", *sweep.names, "runs"]
+    columns += [f"{c}_{stat}" for c in RUN_COLUMNS for stat in ("mean", "std")]
+    _write_rows(out / POINTS_FILE, columns, summary)
+    plot_sweep(sweep, summary, out)
+    return out / POINTS_FILE
+
+
+def summarize(sweep: Sweep, rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One row per point: its swept values, its number of runs, and the mean and
+    standard deviation over its runs of every metric."""
+    by_point: dict[int, list[dict[str, Any]]] = {}
+    for row in rows:
+        by_point.setdefault(int(row["point"]), []).append(row)
+    out = []
+    for point, runs in sorted(by_point.items()):
+        summary: dict[str, Any] = {"point": point, "runs": len(runs)}
+        summary.update({n: float(runs[0][n]) for n in sweep.names})
+        for c in RUN_COLUMNS:
+            values = np.array([float(r[c]) for r in runs])
+            with np.errstate(invalid="ignore"):
+                summary[f"{c}_mean"] = float(values.mean())
+                summary[f"{c}_std"] = float(values.std())
+        out.append(summary)
+    return out
