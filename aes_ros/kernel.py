@@ -39,6 +39,8 @@ def advance(
     metrics: np.ndarray,
     pos_hist: np.ndarray,
     head_hist: np.ndarray,
+    stop_at: np.ndarray,
+    first_step: int,
 ) -> None:
     """Advance every run by ``n_steps`` Euler steps in place.
 
@@ -51,6 +53,9 @@ def advance(
         of the state *before* each step.
     pos_hist : (B, C, N, 2) or (0, 0, 0, 2), head_hist : (B, C, N) or (0, 0, 0):
         the state before each step, when recording.
+    stop_at : (B, N) int64: robot i of run b does not move (u = w = 0, a failed
+        robot) from run step ``stop_at[b, i]`` on; its springs still act.
+    first_step : the run step of this call's first step.
     """
     B, N = headings.shape
     K = neighbors.shape[1]
@@ -136,6 +141,9 @@ def advance(
                 if clip:
                     u = min(max(u, -max_lin), max_lin)
                     w = min(max(w, -max_ang), max_ang)
+                if first_step + step >= stop_at[b, i]:
+                    u = 0.0
+                    w = 0.0
                 new_pos[i, 0] = xi + u * dt * c
                 new_pos[i, 1] = yi + u * dt * s
                 th = th + w * dt

@@ -91,6 +91,7 @@ def simulate(
     progress: bool = False,
     gains: Sequence[Gains] | None = None,
     initial: tuple[np.ndarray, np.ndarray] | None = None,
+    stop_at: np.ndarray | None = None,
 ) -> SimResult:
     """Simulate B runs of a scenario.
 
@@ -107,6 +108,9 @@ def simulate(
         share one kernel call (the numpy backend groups runs with equal gains).
     initial : optional (positions (B, N, 2), headings (B, N)) replacing the
         random start (the generators still draw it, so noise streams are unchanged).
+    stop_at : optional (B, N) step index from which each robot stops moving (a failed
+        robot: u = ω = 0, its springs still act; :func:`failure_steps` makes one);
+        default: never.
     """
     seeds = [seeds] if isinstance(seeds, int | np.integer) else list(seeds)
     rngs = [np.random.default_rng(s) for s in seeds]
@@ -120,6 +124,11 @@ def simulate(
     run_gains = list(gains) if gains is not None else [scenario.gains] * B
     if len(run_gains) != B:
         raise ValueError(f"gains: need one per run ({B}), got {len(run_gains)}")
+    never = np.iinfo(np.int64).max
+    stop_at = np.full((B, N), never, np.int64) if stop_at is None else np.asarray(stop_at)
+    if stop_at.shape != (B, N):
+        raise ValueError(f"stop_at: need shape {(B, N)}, got {stop_at.shape}")
+    stop_at = stop_at.astype(np.int64)
 
     out_metrics = np.empty((B, T + 1, 5))
     pos_hist = np.empty((B, T + 1, N, 2)) if record else None
@@ -143,7 +152,7 @@ def simulate(
         p, h = pos[idx], head[idx]
         for start in range(0, T, CHUNK):
             n = min(CHUNK, T - start)
-            m, ph, hh = sim.advance(p, h, *chunks.next(), n)
+            m, ph, hh = sim.advance(p, h, *chunks.next(), n, stop_at[idx], start)
             out_metrics[idx, start : start + n] = m
             if record:
                 pos_hist[idx, start : start + n] = ph
@@ -159,6 +168,20 @@ def simulate(
         pos_hist[:, T], head_hist[:, T] = pos, head
     times = np.arange(T + 1) * scenario.dt
     return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest, pos, head)
+
+
+def failure_steps(
+    n_runs: int, n_robots: int, fraction: float, at: float, dt: float, seed: int = 0
+) -> np.ndarray:
+    """``stop_at`` for :func:`simulate`: in every run the same ``fraction`` of the robots
+    (chosen with ``seed``) stop moving at sim time ``at`` [s]; (n_runs, n_robots)."""
+    never = np.iinfo(np.int64).max
+    out = np.full((n_runs, n_robots), never, np.int64)
+    failed = np.random.default_rng(seed).choice(
+        n_robots, size=round(fraction * n_robots), replace=False
+    )
+    out[:, failed] = round(at / dt)
+    return out
 
 
 def _group_by_gains(run_gains: list[Gains]) -> list[tuple[np.ndarray, Gains]]:
@@ -251,6 +274,8 @@ class _NumpyStepper:
         xi_y: np.ndarray,
         xi_theta: np.ndarray,
         n: int,
+        stop_at: np.ndarray,
+        first_step: int,
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         sc = self.scenario
         m = np.empty((len(head), n, 5))
@@ -265,6 +290,8 @@ class _NumpyStepper:
             u, w = motion_commands(forces, head, self.gains, sc.dt, noise)
             if sc.clip:
                 u, w = clip_commands(u, w, sc.max_linear_speed, sc.max_angular_speed)
+            moving = first_step + s < stop_at
+            u, w = np.where(moving, u, 0.0), np.where(moving, w, 0.0)
             pos[...], head[...] = unicycle_step(pos, head, u, w, sc.dt)
         return m, ph, hh
 
@@ -312,14 +339,17 @@ class _NumbaStepper:
         xi_y: np.ndarray,
         xi_theta: np.ndarray,
         n: int,
+        stop_at: np.ndarray,
+        first_step: int,
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         B, N = head.shape
         m = np.empty((B, CHUNK, 5))
         ph = np.empty((B, CHUNK, N, 2)) if self.record else np.empty((0, 0, 0, 2))
         hh = np.empty((B, CHUNK, N)) if self.record else np.empty((0, 0, 0))
         advance(
-            pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh
-        )
+            pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh,
+            np.ascontiguousarray(stop_at), first_step,
+        )  # fmt: skip
         if not self.record:
             return m[:, :n], None, None
         return m[:, :n], ph[:, :n], hh[:, :n]

@@ -119,3 +119,21 @@ def test_noise_off_start_is_the_seeded_initial_state() -> None:
     result = simulator.simulate(sc, [9], noise=False)
     np.testing.assert_array_equal(result.positions[0, 0], pos)
     np.testing.assert_array_equal(result.headings[0, 0], head)
+
+
+def test_failed_robots_stop_where_they_are_and_pull_their_neighbours() -> None:
+    sc = scenario.load("linear").with_robots(25).with_overrides({"duration": 6.0})
+    stop_at = simulator.failure_steps(2, 25, fraction=0.2, at=3.0, dt=sc.dt, seed=1)
+    failed = np.flatnonzero(stop_at[0] < 10**9)
+    assert len(failed) == 5
+    res = simulator.simulate(sc, [1, 2], stop_at=stop_at)
+    k = round(3.0 / sc.dt)
+    moved = np.linalg.norm(res.positions[:, -1] - res.positions[:, k], axis=-1)
+    assert np.all(moved[:, failed] == 0.0)  # not one step after the failure
+    assert np.all(np.delete(moved, failed, axis=1) > 0.01)
+    intact = simulator.simulate(sc, [1, 2])
+    np.testing.assert_array_equal(res.positions[:, : k + 1], intact.positions[:, : k + 1])
+    # the failed robots hold the sheet back: the swarm gets less far west than intact
+    assert np.all(res.centroid[:, -1, 0] > intact.centroid[:, -1, 0])
+    ref = simulator.simulate(sc, [1, 2], stop_at=stop_at, backend="numpy")
+    np.testing.assert_allclose(res.positions, ref.positions, atol=1e-9)
