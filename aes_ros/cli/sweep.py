@@ -52,6 +52,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--transient", type=number_type(float, 0), default=0.0,
         help="sim seconds left out of the time averages ψ̄, ψ̄_heading, F̄/N (default 0)",
     )  # fmt: skip
+    p.add_argument(
+        "--fail", default=None, metavar="FRACTION@TIME",
+        help="robots failing mid-run: e.g. 0.1@15 stops 10 %% of them (the same ones in "
+        "every run) at t = 15 s",
+    )  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="first Monte-Carlo seed (and the LHS's)")
     p.add_argument("--out", type=Path, required=True, help="output directory (resumable)")
     p.add_argument(
@@ -79,6 +84,15 @@ def run(args: argparse.Namespace) -> int:
     if args.robots is not None:
         base = base.with_robots(args.robots)
     axes = [parse_axis(text) for text in args.param]
+    fail = None
+    if args.fail is not None:
+        fraction, sep, at = args.fail.partition("@")
+        try:
+            fail = (float(fraction), float(at))
+        except ValueError:
+            sep = ""
+        if not sep:
+            raise SweepSpecError(f"--fail {args.fail!r}: need FRACTION@TIME, e.g. 0.1@15")
     sweep = Sweep(
         base,
         axes,
@@ -87,6 +101,7 @@ def run(args: argparse.Namespace) -> int:
         seed=args.seed,
         transient=args.transient,
         lhs=args.lhs,
+        fail=fail,
     )
     summary = execute(
         sweep,

@@ -47,7 +47,8 @@ class Sweep:
     """One sweep: the base scenario, its axes and points, the Monte-Carlo seeds.
 
     points : (P, len(axes)) swept values. seeds : seed, seed+1, …, seed+mc−1 for
-    every point. transient : sim seconds left out of the time averages.
+    every point. transient : sim seconds left out of the time averages. fail :
+    (fraction, time [s]) of robots that stop moving mid-run, or None.
     """
 
     base: Scenario
@@ -57,6 +58,7 @@ class Sweep:
     seed: int = 0
     transient: float = 0.0
     lhs: int | None = None
+    fail: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.mc < 1:
@@ -66,6 +68,13 @@ class Sweep:
                 f"--transient {self.transient:g}: need 0 <= transient < duration "
                 f"({self.base.duration:g} s)"
             )
+        if self.fail is not None:
+            fraction, at = self.fail
+            if not (0.0 <= fraction <= 1.0 and 0.0 <= at <= self.base.duration):
+                raise SweepSpecError(
+                    f"--fail {fraction:g}@{at:g}: need a fraction in [0, 1] and a time in "
+                    f"[0, {self.base.duration:g}] s"
+                )
 
     @property
     def names(self) -> list[str]:
@@ -87,6 +96,7 @@ class Sweep:
                     "seed": self.seed,
                     "transient": self.transient,
                     "lhs": self.lhs,
+                    "fail": self.fail,
                 },
                 default=list,
             )
@@ -135,14 +145,23 @@ def _write_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> N
     tmp.replace(path)
 
 
-def _local(sweep: Sweep, tasks: list[Task]) -> Iterator[list[dict[str, Any]]]:
-    for task in tasks:
-        yield _run(sweep, task)
+def results(
+    sweep: Sweep, tasks: list[Task], *, scheduler: str | None = None, workers: int | None = None
+) -> Iterator[list[dict[str, Any]]]:
+    """The rows of each task as it finishes: here (default), on ``workers`` local
+    Dask workers, or on the Dask cluster at ``scheduler``."""
+    if scheduler is None and not workers:
+        for task in tasks:
+            yield _run(sweep, task)
+    else:
+        yield from _dask(sweep, tasks, scheduler, workers)
 
 
 def _run(sweep: Sweep, task: Task) -> list[dict[str, Any]]:
     values = sweep.points[list(task.indices)]
-    return run_task(sweep.base, sweep.names, task.indices, values, sweep.seeds, sweep.transient)
+    return run_task(
+        sweep.base, sweep.names, task.indices, values, sweep.seeds, sweep.transient, sweep.fail
+    )
 
 
 def _dask(
@@ -173,6 +192,7 @@ def _dask(
                 sweep.points[list(t.indices)],
                 sweep.seeds,
                 sweep.transient,
+                sweep.fail,
                 key=f"aes-sweep-{t.indices[0]}-{len(t.indices)}",
                 pure=False,
             )
@@ -213,9 +233,7 @@ def execute(
     )
     runs = out / RUNS_FILE
     fresh = not runs.exists()
-    source = _local(sweep, tasks) if scheduler is None and not workers else None
-    if source is None:
-        source = _dask(sweep, tasks, scheduler, workers)
+    source = results(sweep, tasks, scheduler=scheduler, workers=workers)
     bar = tqdm(
         total=len(sweep.points), initial=len(done), unit="point", disable=not progress,
         desc="sweep",

@@ -24,7 +24,7 @@ from aes_ros.model import Gains
 from aes_ros.optim.cost import default_weights, run_costs
 from aes_ros.params import PARAMS
 from aes_ros.scenario import Scenario
-from aes_ros.simulator import simulate
+from aes_ros.simulator import failure_steps, simulate
 from aes_ros.sweep.spec import ROBOTS
 
 #: Per-run columns of the tidy table, after point, run, seed and the swept parameters.
@@ -88,9 +88,12 @@ def run_task(
     values: np.ndarray,
     seeds: Sequence[int],
     transient: float,
+    fail: tuple[float, float] | None = None,
 ) -> list[dict[str, Any]]:
     """Simulate points ``indices`` (their swept ``values``, one row each) with every
-    seed; one row per (point, run).
+    seed; one row per (point, run). ``fail`` = (fraction, time [s]): that fraction of
+    the robots (the same ones in every run, chosen by the first seed) stops moving at
+    that time.
 
     Row: ``point``, ``run``, ``seed``, the swept values, then ψ̄ (E8) and ψ̄_heading
     (E7) averaged over t ≥ ``transient`` [s], F̄/N (E9 per robot, same span), the
@@ -101,9 +104,12 @@ def run_task(
     sc = scenarios[0]
     seeds = [int(s) for s in seeds]
     gains = [s.gains for s in scenarios for _ in seeds]
+    n = len(sc.nominal_positions())
+    stop_at = None
+    if fail is not None:
+        stop_at = failure_steps(len(gains), n, fail[0], fail[1], sc.dt, seed=seeds[0])
     with np.errstate(all="ignore"):
-        result = simulate(sc, seeds * len(scenarios), gains=gains, record=False)
-        n = len(sc.nominal_positions())
+        result = simulate(sc, seeds * len(scenarios), gains=gains, record=False, stop_at=stop_at)
         w1, w2 = default_weights(n)
         cost = run_costs(result, w1, w2)
         after = result.times >= transient - 1e-9

@@ -168,6 +168,8 @@ def test_bad_arguments_exit_2_naming_the_option(
         (["--param", "alpha=0:1"], "alpha: a grid needs a count"),
         (["--param", "alpha=0:1:3", "--transient", "99"], "--transient 99"),
         (["--param", "alpha=0:1:3", "--workers", "2", "--scheduler", "tcp://x:1"], "--scheduler"),
+        (["--param", "alpha=0:1:3", "--fail", "2@5"], "--fail 2@5: need a fraction in [0, 1]"),
+        (["--param", "alpha=0:1:3", "--fail", "10%"], "--fail '10%': need FRACTION@TIME"),
     ],
 )
 def test_bad_sweep_specs_exit_2_naming_the_field(
