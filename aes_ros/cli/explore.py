@@ -1,0 +1,65 @@
+"""``aes-swarm explore``: the studies built on sweeps, each regenerating its figures.
+
+Examples::
+
+    aes-swarm explore pareto                  # docs/explore/pareto/pareto.png, …
+    aes-swarm explore noise --workers 2
+    aes-swarm explore robustness --scheduler tcp://head:8786
+
+- ``pareto``: the Pareto front of (F̄/N, ψ̄) over (α, β, k) and where the paper's,
+  the untuned and the TCACS gains lie on it (:mod:`aes_ros.studies.pareto`);
+- ``noise``: the noise phase diagram over (D_r, D_θ) and the swarm size
+  (:mod:`aes_ros.studies.noise`);
+- ``robustness``: J and ψ̄ of the paper's and the TCACS gains under noise, size and
+  failing robots (:mod:`aes_ros.studies.robustness`).
+
+The sweeps' tables go to ``--work`` (resumable: an interrupted study goes on where
+it stopped), the figures, CSV and JSON to ``--out``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+from pathlib import Path
+
+from aes_ros.cli.options import number_type
+
+STUDIES = ("pareto", "noise", "robustness")
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("study", choices=STUDIES, help="which study")
+    p.add_argument(
+        "--out", type=Path, default=None, help="figures and tables (default docs/explore/STUDY)"
+    )
+    p.add_argument(
+        "--work", type=Path, default=Path("out/explore"),
+        help="the sweeps' tables, kept to resume (default out/explore)",
+    )  # fmt: skip
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a Dask cluster")
+    p.add_argument(
+        "--workers", type=number_type(int, 1), default=None, metavar="K",
+        help="a local Dask cluster of K workers",
+    )  # fmt: skip
+    p.add_argument(
+        "--quick", action="store_true", help="a small version (fewer points, runs, robots)"
+    )
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def run(args: argparse.Namespace) -> int:
+    from aes_ros.studies.common import Where
+    from aes_ros.sweep.spec import SweepSpecError
+
+    if args.scheduler is not None and args.workers is not None:
+        raise SweepSpecError("--scheduler and --workers: give one of them")
+    out = args.out if args.out is not None else Path("docs/explore") / args.study
+    work = args.work / (f"{args.study}_quick" if args.quick else args.study)
+    where = Where(work, args.scheduler, args.workers, progress=not args.no_progress)
+    study = importlib.import_module(f"aes_ros.studies.{args.study}")
+    result = study.run(out, where, quick=args.quick)
+    print(json.dumps(result, indent=1)[:2000])
+    print(f"explore {args.study}: figures and tables in {out}")
+    return 0
