@@ -243,8 +243,9 @@ def test_off_this_machine_only_with_the_token(spawn, probe, tmp_path):
     try:
         probe.wait(lambda: viewer.sheets, 10.0, "the sheet")
         assert viewer.sheets[0]["n"] == 4
-        assert viewer.send({"type": "drive", "direction": [1, 0], "omega": 0.2})["ok"]
-        probe.wait(lambda: commands, 10.0, "/swarm/cmd")
+        drive = {"type": "drive", "direction": [1, 0], "omega": 0.2}
+        # one message each time: sent again until discovery has matched the probe
+        probe.until(lambda: viewer.send(drive)["ok"] or pytest.fail("refused"), lambda: commands)
         assert commands[-1].linear.x == 1.0 and commands[-1].angular.z == 0.2
     finally:
         viewer.close()
