@@ -4,9 +4,11 @@ One sweep (combined setup, 100 robots, 30 s, ``--mc 10``, 12 points a task: a ta
 is about 1 s of one core) is run four ways in this process, each after a warm-up,
 alternating, ``--repeats`` times (best kept):
 
-- ``local_1``: the tasks one after the other here, the numba kernel on 1 thread;
+- ``local_1``: the tasks one after the other in a process of their own started with
+  ``NUMBA_NUM_THREADS=1`` and the environment Dask gives its workers (one BLAS and
+  OpenMP thread, malloc trimming; without it the local process is ~10 % slower);
 - ``dask_1``: the same tasks on a local Dask cluster of 1 single-threaded worker;
-- ``local_2``: here, the kernel on 2 threads;
+- ``local_2``: the same, the kernel on 2 threads (``aes-swarm sweep`` on this machine);
 - ``dask_2``: on 2 single-threaded Dask workers.
 
 Only the task phase is timed (the cluster is started before, the figures are not
@@ -26,19 +28,22 @@ overhead_2_pct=… identical=yes targets_met=yes|no`` (throughputs in agent-step
 from __future__ import annotations
 
 import argparse
+import json
+import logging
 import os
+import shutil
+import subprocess
 import sys
+import tempfile
 import time
+from pathlib import Path
 
-os.environ.setdefault("NUMBA_NUM_THREADS", "2")
+import numpy as np
 
-import numba  # noqa: E402
-import numpy as np  # noqa: E402
-
-from aes_ros import scenario  # noqa: E402
-from aes_ros.sweep.engine import Sweep, results  # noqa: E402
-from aes_ros.sweep.runs import make_tasks  # noqa: E402
-from aes_ros.sweep.spec import parse_axis, points  # noqa: E402
+from aes_ros import scenario
+from aes_ros.sweep.engine import Sweep, results
+from aes_ros.sweep.runs import make_tasks
+from aes_ros.sweep.spec import parse_axis, points
 
 TARGET_OVERHEAD_PCT = 15.0
 
@@ -55,14 +60,46 @@ def timed(sweep: Sweep, tasks, **where) -> tuple[float, list]:
     return time.perf_counter() - start, sorted(rows, key=lambda r: (r["point"], r["run"]))
 
 
+def timed_local(threads: int, args: argparse.Namespace, work: Path) -> tuple[float, list]:
+    """The tasks in a fresh process with ``NUMBA_NUM_THREADS=threads`` (warmed up first)."""
+    out = work / f"local_{threads}.json"
+    cmd = [sys.executable, __file__, "--child", str(out), "--points", str(args.points),
+           "--mc", str(args.mc), "--points-per-task", str(args.points_per_task)]  # fmt: skip
+    import dask
+
+    # the environment Dask's nanny gives its workers (one BLAS/OpenMP thread, malloc
+    # trimming): alone it makes a process about 10 % faster here, so the local runs get it too
+    spawn = {k: str(v) for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()}
+    env = {**os.environ, **spawn, "NUMBA_NUM_THREADS": str(threads)}
+    subprocess.run(cmd, env=env, check=True)
+    saved = json.loads(out.read_text())
+    return saved["wall"], saved["rows"]
+
+
+def child(args: argparse.Namespace) -> int:
+    """``--child FILE``: warm up, time the tasks here, write the wall time and rows."""
+    sweep = make_sweep(args.points, args.mc)
+    warm = make_sweep(4, 1)
+    timed(warm, make_tasks(warm.names, warm.points, set(), 4))
+    wall, rows = timed(sweep, make_tasks(sweep.names, sweep.points, set(), args.points_per_task))
+    Path(args.child).write_text(json.dumps({"wall": wall, "rows": rows}))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--points", type=int, default=96, help="points of the sweep")
     parser.add_argument("--mc", type=int, default=10)
     parser.add_argument("--points-per-task", type=int, default=12)
     parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.child is not None:
+        return child(args)
     from dask.distributed import LocalCluster
+
+    logging.getLogger("distributed").setLevel(logging.WARNING)
+    work = Path(tempfile.mkdtemp(prefix="aes-bench-sweep-"))
 
     sweep = make_sweep(args.points, args.mc)
     tasks = make_tasks(sweep.names, sweep.points, set(), args.points_per_task)
@@ -70,37 +107,40 @@ def main(argv: list[str] | None = None) -> int:
     warm_tasks = make_tasks(warm.names, warm.points, set(), 4)
     n = len(sweep.base.nominal_positions())
     agent_steps = n * sweep.base.n_steps * sweep.mc * len(sweep.points)
-    print(f"sweep: {len(sweep.points)} points x {sweep.mc} runs of {n} robots x "
-          f"{sweep.base.n_steps} steps = {agent_steps:.3g} agent-steps in {len(tasks)} tasks",
-          flush=True)  # fmt: skip
+    print(
+        f"sweep: {len(sweep.points)} points x {sweep.mc} runs of {n} robots x "
+        f"{sweep.base.n_steps} steps = {agent_steps:.3g} agent-steps in {len(tasks)} tasks",
+        flush=True,
+    )
 
     clusters = {}
     for k in (1, 2):
         clusters[k] = LocalCluster(
-            n_workers=k, threads_per_worker=1, processes=True, dashboard_address=None,
+            n_workers=k,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
             env={"NUMBA_NUM_THREADS": "1"},
-        )  # fmt: skip
+        )
         timed(warm, warm_tasks, scheduler=clusters[k].scheduler_address)  # JIT loaded
-    timed(warm, warm_tasks)
     best: dict[str, float] = {}
     tables: dict[str, list] = {}
     try:
         for r in range(args.repeats):
-            for name, threads, where in (
-                ("local_1", 1, {}),
-                ("dask_1", 1, {"scheduler": clusters[1].scheduler_address}),
-                ("local_2", 2, {}),
-                ("dask_2", 2, {"scheduler": clusters[2].scheduler_address}),
-            ):
-                numba.set_num_threads(threads)
-                wall, rows = timed(sweep, tasks, **where)
+            for name, k in (("local_1", 1), ("dask_1", 1), ("local_2", 2), ("dask_2", 2)):
+                if name.startswith("local"):
+                    wall, rows = timed_local(k, args, work)
+                else:
+                    wall, rows = timed(sweep, tasks, scheduler=clusters[k].scheduler_address)
                 best[name] = min(best.get(name, np.inf), wall)
                 tables[name] = rows
                 print(f"  repeat {r}: {name:<8} {wall:6.2f} s", flush=True)
     finally:
         for cluster in clusters.values():
             cluster.close()
-    identical = all(rows == tables["local_1"] for rows in tables.values())
+        shutil.rmtree(work, ignore_errors=True)
+    same = json.loads(json.dumps(tables["dask_1"]))  # as the children saved theirs
+    identical = all(json.loads(json.dumps(rows)) == same for rows in tables.values())
     rate = {name: agent_steps / wall for name, wall in best.items()}
     overhead = {k: 100 * (best[f"dask_{k}"] / best[f"local_{k}"] - 1) for k in (1, 2)}
     print(f"\n{'variant':<10}{'wall [s]':>10}{'agent-steps/s':>16}{'vs local':>10}")
@@ -108,8 +148,10 @@ def main(argv: list[str] | None = None) -> int:
         k = name[-1]
         ratio = wall / best[f"local_{k}"]
         print(f"{name:<10}{wall:>10.2f}{rate[name]:>16.3g}{ratio:>10.3f}")
-    print(f"2 cores / 1 core, local: {best['local_1'] / best['local_2']:.2f}x; "
-          f"Dask: {best['dask_1'] / best['dask_2']:.2f}x; tables identical: {identical}")  # fmt: skip
+    print(
+        f"2 cores / 1 core, local: {best['local_1'] / best['local_2']:.2f}x; "
+        f"Dask: {best['dask_1'] / best['dask_2']:.2f}x; tables identical: {identical}"
+    )
     met = identical and max(overhead.values()) <= TARGET_OVERHEAD_PCT
     print(
         f"RESULT local_1={rate['local_1']:.3g} dask_1={rate['dask_1']:.3g} "
