@@ -139,27 +139,27 @@ def _col(rows: list[dict[str, float]], name: str) -> np.ndarray:
 
 
 def _figure(path, sample, force, psi, front, sets, ratios, k_opt, base) -> None:
-    fig, (ax, ax_k) = plt.subplots(1, 2, figsize=(12, 4.8))
+    fig, (ax, ax_zoom, ax_k) = plt.subplots(1, 3, figsize=(17, 4.8))
     k = _col(sample, "k")
-    dots = ax.scatter(force, psi, c=np.log10(k), s=9, cmap="viridis", alpha=0.7)
     order = np.argsort(force[front])
-    ax.plot(force[front][order], psi[front][order], "k-", lw=1.5, label="Pareto front")
-    markers = iter("sD^vP*X")
-    for row in sets:
-        ax.plot(
-            row["force_per_robot"],
-            row["psi"],
-            next(markers, "o"),
-            ms=9,
-            mec="k",
-            label=f"{row['gains']} (k={row['k']:.2g})",
-        )
+    for panel, zoom in ((ax, False), (ax_zoom, True)):
+        dots = panel.scatter(force, psi, c=np.log10(k), s=9 if not zoom else 16,
+                             cmap="viridis", alpha=0.7)  # fmt: skip
+        panel.plot(force[front][order], psi[front][order], "k-", lw=1.5, label="Pareto front")
+        markers = iter("sD^vP*X")
+        for row in sets:
+            panel.plot(row["force_per_robot"], row["psi"], next(markers, "o"), ms=9, mec="k",
+                       label=f"{row['gains']} (k={row['k']:.2g})")  # fmt: skip
+        panel.set_xlabel("mean total force per robot F̄/N (E9)")
+        panel.set_ylabel("mean force alignment ψ̄ (E8)")
     ax.set_xscale("log")
-    ax.set_xlabel("mean total force per robot F̄/N (E9)")
-    ax.set_ylabel("mean force alignment ψ̄ (E8)")
     ax.set_title(f"{len(sample)} (α, β, k) samples, {len(base.nominal_positions())} robots")
-    fig.colorbar(dots, ax=ax, label="log10 k")
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="lower left")
+    f0 = float(np.nanmin(force))
+    ax_zoom.set_xlim(f0 - 0.01, f0 + 0.12)
+    ax_zoom.set_ylim(float(np.nanmax(psi)) - 0.15, float(np.nanmax(psi)) + 0.02)
+    ax_zoom.set_title("near the front")
+    fig.colorbar(dots, ax=ax_zoom, label="log10 k")
     ax_k.semilogx(ratios, k_opt, "o-", ms=3, label="k of the optimum")
     ax_k.axhline(PAPER_K, color="r", ls="--", label="paper's k* = 1.28")
     for r, name in ((0.1, "alignment×10"), (1.0, "paper"), (10.0, "force×10")):

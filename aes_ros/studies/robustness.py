@@ -116,6 +116,7 @@ def _figure(path: Path, rows: list[dict], chosen, sizes) -> None:
                     )
             ax.set_xscale("log")
             ax.set_xticks(SCALES, [f"×{s:g}" for s in SCALES])
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set(xlabel="both noises scaled", ylabel=label, title=f"{n} robots")
             if row == 0 and col == 0:
                 ax.legend(fontsize=7)
