@@ -23,10 +23,6 @@ from aes_ros.cli.options import add_scenario_options, load_scenario, number_type
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     p.add_argument(
-        "--robots", type=number_type(int, 1), default=None,
-        help="robots of the swarm (a near-square grid of the scenario; default: as its poses say)",
-    )  # fmt: skip
-    p.add_argument(
         "--port", type=number_type(int, 0, 65535), default=8080,
         help="web server port (default 8080; 0: any free one)",
     )  # fmt: skip
@@ -42,8 +38,6 @@ def run(args: argparse.Namespace) -> int:
     from dashboard_node.node import main
 
     sc = load_scenario(args)
-    if args.robots is not None:
-        sc = sc.with_robots(args.robots)
     with tempfile.TemporaryDirectory(prefix="aes-dashboard-") as tmp:
         name = args.scenario.stem if args.scenario is not None else args.setup
         scenario_file = write_scenario(sc, Path(tmp) / f"{name}.yaml")

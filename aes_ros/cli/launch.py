@@ -27,10 +27,6 @@ from aes_ros.ros.launch.plan import ON_FAILURE
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     p.add_argument(
-        "--robots", type=number_type(int, 1), default=None,
-        help="number of robots N (a near-square grid; default: the scenario's formation)",
-    )  # fmt: skip
-    p.add_argument(
         "--layout", choices=LAYOUTS, default="per-core",
         help="robot processes: one for all, one per core (default), or one per robot",
     )  # fmt: skip
@@ -80,8 +76,6 @@ def run(args: argparse.Namespace) -> int:
     from aes_ros.ros.launch import LaunchConfig, LaunchError, launch
 
     sc = load_scenario(args)
-    if args.robots is not None:
-        sc = sc.with_robots(args.robots)
     overrides = scenario.parse_assignments(args.set)
     config = LaunchConfig(
         scenario=sc,

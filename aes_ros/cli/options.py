@@ -20,7 +20,8 @@ from aes_ros.params import ParameterError
 
 
 def add_scenario_options(p: argparse.ArgumentParser) -> None:
-    """``--setup`` / ``--scenario`` / ``--set``: which scenario, with which overrides."""
+    """``--setup`` / ``--scenario`` / ``--set`` / ``--robots``: which scenario, with which
+    overrides."""
     p.add_argument(
         "--setup",
         default="combined",
@@ -40,16 +41,23 @@ def add_scenario_options(p: argparse.ArgumentParser) -> None:
         metavar="NAME=VALUE",
         help="override a parameter (repeatable); see `aes-swarm params`",
     )
+    p.add_argument(
+        "--robots", type=number_type(int, 1), default=None,
+        help="number of robots N: a near-square grid (default: the scenario's formation)",
+    )  # fmt: skip
 
 
 def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
-    """The scenario named by --setup/--scenario with --set (and --dt/--duration) applied."""
+    """The scenario named by --setup/--scenario with --set, --robots (and --dt/--duration)
+    applied."""
     source = args.scenario if args.scenario is not None else args.setup
     if args.scenario is None and args.setup not in scenario.SETUPS:
         raise ParameterError(
             f"--setup: unknown setup {args.setup!r}; allowed: {', '.join(scenario.SETUPS)}"
         )
     sc = scenario.load(source, scenario.parse_assignments(args.set))
+    if args.robots is not None:
+        sc = sc.with_robots(args.robots)
     options = {n: v for n in ("dt", "duration") if (v := getattr(args, n, None)) is not None}
     return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
 

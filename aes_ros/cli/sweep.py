@@ -39,10 +39,6 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="N Latin-hypercube samples of the --param ranges instead of the grid",
     )  # fmt: skip
     add_scenario_options(p)
-    p.add_argument(
-        "--robots", type=number_type(int, 1), default=None,
-        help="robots of every point (a near-square grid) unless robots is swept",
-    )  # fmt: skip
     add_monte_carlo_option(p)
     p.add_argument(
         "--duration", type=number_type(float, 0), default=None,
@@ -81,8 +77,6 @@ def run(args: argparse.Namespace) -> int:
     if args.scheduler is not None and args.workers is not None:
         raise SweepSpecError("--scheduler and --workers: give one of them")
     base = load_scenario(args)
-    if args.robots is not None:
-        base = base.with_robots(args.robots)
     axes = [parse_axis(text) for text in args.param]
     fail = None
     if args.fail is not None:
