@@ -23,8 +23,18 @@ Usage::
 
 Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default
 ``out/bench_ros``), prints a table and, as its last line,
-``RESULT rate_hz=… rtf=… p99_ms=… start_s=…`` for 100 robots, 50 Hz, poses
-(or the first configuration measured if that one is not in the grid).
+``RESULT robots=… hz=… source=… rate_hz=… rate_min_hz=… rtf=… p99_ms=… start_s=…
+cpu_us_per_robot_step=… baseline_cpu_us_per_robot_step=… efficiency_ratio=…
+efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses (or the first
+configuration measured if that one is not in the grid).
+
+``cpu_us_per_robot_step`` is the machine-independent figure: µs of CPU of the whole
+system (bridge, supervisor, robot processes) per robot per control step answered. The
+same run measures it for the straightforward design other ROS swarm packages use
+(``bench/naive_swarm.py``: one rclpy node per robot on a SingleThreadedExecutor,
+neighbours' Odometry as message objects, Twist objects out, 10 robots per process)
+with the same bridge and supervisor; ``efficiency_ratio`` is its figure over ours
+(poses; ``_odom``: ours with odometry too). ``--no-baseline`` skips it.
 
 The ``physics`` line runs 100 Mona robots in ``dynamic`` mode at 240 Hz
 physics with no ROS at all and reports the real-time factor of pybullet alone.
@@ -76,6 +86,8 @@ class Row:
     cpu_launcher: float
     memory_mb: float
     processes: int
+    cpu_us_per_robot_step: float = float("nan")
+    design: str = "aes"
 
     def cells(self) -> list[str]:
         return [
@@ -94,13 +106,14 @@ class Row:
             f"{self.cpu_robots:.0f}",
             f"{self.cpu_launcher:.0f}",
             f"{self.memory_mb:.0f}",
+            f"{self.cpu_us_per_robot_step:.0f}",
         ]
 
 
 HEADER = [
     "robots", "Hz", "source", "layout", "start [s]", "RTF", "rate min", "rate med",
     "p50 [ms]", "p99 [ms]", "CPU bridge %", "CPU sup %", "CPU robots %", "CPU launch %",
-    "mem [MB]",
+    "mem [MB]", "CPU µs/robot-step",
 ]  # fmt: skip
 
 
@@ -161,7 +174,86 @@ def measure(
         stats["latency_p50_ms"] or float("nan"), stats["latency_p99_ms"] or float("nan"),
         cpu["sim_bridge"], cpu["supervisor"], robot_cpu, cpu["launcher"], memory,
         len(pids) - 1,
+        per_robot_step(cpu["sim_bridge"] + cpu["supervisor"] + robot_cpu, stats, robots),
     )  # fmt: skip
+
+
+def per_robot_step(cpu_pct: float, stats: dict, robots: int) -> float:
+    """µs of CPU (bridge + supervisor + robot processes) per robot per control step
+    answered: CPU [% of a core] over the commands the bridge received per second."""
+    commands_per_s = stats["rate_median_hz"] * robots
+    return 1e6 * (cpu_pct / 100.0) / commands_per_s if commands_per_s > 0 else float("nan")
+
+
+def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row:
+    """The same bridge and supervisor with the straightforward design's robots
+    (:mod:`naive_swarm`: a node per robot, Odometry objects, SingleThreadedExecutor,
+    10 robots per process) instead of ``aes-robot-host``."""
+    import tempfile
+
+    from aes_ros.ros.launch.monitor import Monitor
+    from aes_ros.ros.launch.plan import (
+        LaunchConfig,
+        bridge_command,
+        split_robots,
+        supervisor_command,
+        write_scenario,
+    )
+    from aes_ros.ros.launch.processes import ProcessSet, fastdds_environment
+
+    sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
+    config = LaunchConfig(sc, neighbor_source="odom", mode="kinematic", duration=0.0)
+    work = Path(tempfile.mkdtemp(prefix="aes-bench-naive-"))
+    scenario_file = write_scenario(sc, work / "scenario.yaml")
+    procs = ProcessSet(work / "logs", fastdds_environment(dict(os.environ)))
+    monitor = Monitor(robots)
+    naive = Path(__file__).with_name("naive_swarm.py")
+    t0 = time.monotonic()
+    try:
+        children = [procs.start(*bridge_command(config, scenario_file)),
+                    procs.start(*supervisor_command(config, scenario_file))]  # fmt: skip
+        for k, ids in enumerate(split_robots(robots, -(-robots // 10))):
+            cmd = [sys.executable, str(naive), "--scenario", str(scenario_file),
+                   "--ids", f"{ids[0]}:{ids[-1] + 1}"]  # fmt: skip
+            children.append(procs.start(f"robot_naive_{k}", cmd))
+        deadline = time.monotonic() + 600.0
+        while True:
+            monitor.spin_once(0.05)
+            if len(monitor.times) > 1:
+                moved = np.linalg.norm(monitor.positions[-1] - monitor.positions[0], axis=-1)
+                if np.all(moved > 1e-4):
+                    break
+            if time.monotonic() > deadline or any(c.proc.poll() is not None for c in children):
+                raise RuntimeError(f"the naive swarm did not start; logs in {work / 'logs'}")
+        start_s = time.monotonic() - t0
+        _spin(monitor, warmup)
+        monitor.bridge_stats()
+        pids = {c.name: c.proc.pid for c in children}
+        cpu0 = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        w0 = time.monotonic()
+        _spin(monitor, window)
+        stats = monitor.bridge_stats()
+        wall = time.monotonic() - w0
+        cpu = {name: 100.0 * (cpu_seconds(pid) - cpu0[name]) / wall for name, pid in pids.items()}
+        memory = sum(pss_mb(pid) for pid in pids.values())
+    finally:
+        procs.stop_all(10.0)
+        monitor.close()
+    robot_cpu = sum(v for k, v in cpu.items() if k.startswith("robot"))
+    return Row(
+        robots, rate, "odom", "naive", start_s, stats["real_time_factor"],
+        stats["rate_min_hz"], stats["rate_median_hz"],
+        stats["latency_p50_ms"] or float("nan"), stats["latency_p99_ms"] or float("nan"),
+        cpu["sim_bridge"], cpu["supervisor"], robot_cpu, 0.0, memory, len(pids),
+        per_robot_step(cpu["sim_bridge"] + cpu["supervisor"] + robot_cpu, stats, robots),
+        "naive",
+    )  # fmt: skip
+
+
+def _spin(monitor, seconds: float) -> None:
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        monitor.spin_once(0.05)
 
 
 def physics_rtf(robots: int = 100, physics_rate: float = 240.0, seconds: float = 10.0) -> float:
@@ -250,6 +342,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--layouts", default="per-core", help="single,per-core,per-robot")
     parser.add_argument("--quick", action="store_true", help="one small configuration (CI smoke)")
     parser.add_argument("--physics", action="store_true", help="only the bridge physics line")
+    parser.add_argument(
+        "--no-baseline", action="store_true",
+        help="skip the straightforward design (bench/naive_swarm.py) of the reference line",
+    )  # fmt: skip
     parser.add_argument("--warmup", type=float, default=3.0, help="wall seconds before measuring")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--out", type=Path, default=Path("out/bench_ros"))
@@ -291,18 +387,48 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         print("RESULT failed: no configuration measured")
         return 1
+    reference = (100, 50, "poses", "per-core")
+    key = next((r for r in rows if (r.robots, r.rate, r.source, r.layout) == reference), rows[0])
+    ratios = ""
+    if not args.no_baseline:
+        # the same robots and rate: this design with odometry too, and the naive one
+        odom = next(
+            (r for r in rows if (r.robots, r.rate, r.source) == (key.robots, key.rate, "odom")),
+            None,
+        )
+        if odom is None:
+            odom = measure(key.robots, key.rate, "odom", key.layout, args.warmup, args.window)
+            rows.append(odom)
+            print("  ".join(odom.cells()), flush=True)
+        naive = measure_naive(key.robots, key.rate, args.warmup, args.window)
+        rows.append(naive)
+        print("  ".join(naive.cells()), flush=True)
+        ratio = naive.cpu_us_per_robot_step / key.cpu_us_per_robot_step
+        ratio_odom = naive.cpu_us_per_robot_step / odom.cpu_us_per_robot_step
+        ratios = (
+            f" baseline_cpu_us_per_robot_step={naive.cpu_us_per_robot_step:.1f}"
+            f" efficiency_ratio={ratio:.2f} efficiency_ratio_odom={ratio_odom:.2f}"
+            f" baseline_rate_hz={naive.rate_median_hz:.2f}"
+        )
     print()
     print_table(rows)
     print(line)
+    if ratios:
+        print(
+            f"CPU per robot-step, {key.robots} robots at {key.rate:g} Hz: this design "
+            f"{key.cpu_us_per_robot_step:.0f} µs (poses), {odom.cpu_us_per_robot_step:.0f} µs "
+            f"(odom); the straightforward design {naive.cpu_us_per_robot_step:.0f} µs "
+            f"(answering {naive.rate_median_hz:.1f} of {key.rate:g} Hz): efficiency "
+            f"{ratio:.2f}x (poses), {ratio_odom:.2f}x (odom)"
+        )
     write_csv(rows, args.out / "bench_ros.csv")
     plot(rows, args.out / "bench_ros.png")
     (args.out / "physics.txt").write_text(line + "\n")
-    reference = (100, 50, "poses", "per-core")
-    key = next((r for r in rows if (r.robots, r.rate, r.source, r.layout) == reference), rows[0])
     print(
         f"RESULT robots={key.robots} hz={key.rate:g} source={key.source} "
         f"rate_hz={key.rate_median_hz:.2f} rate_min_hz={key.rate_min_hz:.2f} rtf={key.rtf:.3f} "
-        f"p99_ms={key.p99_ms:.1f} start_s={key.start_s:.1f}"
+        f"p99_ms={key.p99_ms:.1f} start_s={key.start_s:.1f} "
+        f"cpu_us_per_robot_step={key.cpu_us_per_robot_step:.1f}{ratios}"
     )
     return 0
 

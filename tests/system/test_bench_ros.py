@@ -14,7 +14,7 @@ REPO = Path(__file__).resolve().parents[2]
 def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
     out = subprocess.run(
         [sys.executable, str(REPO / "bench" / "bench_ros.py"), "--quick", "--out", str(tmp_path)],
-        env=ros_env, capture_output=True, text=True, timeout=240,
+        env=ros_env, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]
     last = out.stdout.strip().splitlines()[-1]
@@ -22,7 +22,14 @@ def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
     fields = dict(item.split("=") for item in last.split()[1:])
     assert float(fields["rate_min_hz"]) > 0.0  # every robot's cmd_vel reached the bridge
     assert float(fields["rtf"]) > 0.0 and float(fields["start_s"]) > 0.0
+    # the machine-independent figure, and the straightforward design's beside it
+    assert float(fields["cpu_us_per_robot_step"]) > 0.0
+    assert float(fields["baseline_cpu_us_per_robot_step"]) > 0.0
+    assert float(fields["baseline_rate_hz"]) > 0.0  # the naive robots answered too
     rows = list(csv.DictReader((tmp_path / "bench_ros.csv").open()))
-    assert len(rows) == 1 and int(rows[0]["robots"]) == 16
+    assert [(r["source"], r["design"]) for r in rows] == [
+        ("poses", "aes"), ("odom", "aes"), ("odom", "naive")
+    ]  # fmt: skip
+    assert all(int(r["robots"]) == 16 for r in rows)
     assert (tmp_path / "bench_ros.png").stat().st_size > 0
     assert "physics: 100 robots" in out.stdout
