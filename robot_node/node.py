@@ -41,7 +41,8 @@ from rclpy.parameter import Parameter
 from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput, evaluate_robots
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
-from aes_ros.ros.conversions import BadMessageError, odom_to_pose, stamp_to_ns, vector3_stamped
+from aes_ros.ros.cdr import decode_odometry
+from aes_ros.ros.conversions import BadMessageError, stamp_to_ns, vector3_stamped
 from aes_ros.ros.node_tools import PublishCounter, ThrottledWarnings
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, SENSOR
 from aes_ros.ros.spin import run_node_process
@@ -272,7 +273,9 @@ class RobotNode(Node):
         """Subscribe to the odometry the neighbour source needs, and to nothing else."""
         want_odom = not self.uses_poses
         if want_odom and self._odom_sub is None:
-            self._odom_sub = self.create_subscription(Odometry, names.ODOM, self.on_odom, SENSOR)
+            self._odom_sub = self.create_subscription(
+                Odometry, names.ODOM, self.on_odom, SENSOR, raw=True
+            )
         elif not want_odom and self._odom_sub is not None:
             self.destroy_subscription(self._odom_sub)
             self._odom_sub = None
@@ -284,8 +287,9 @@ class RobotNode(Node):
             self._neighbor_subs[j] = self.create_subscription(
                 Odometry,
                 names.robot_topic(j, names.ODOM),
-                lambda msg, j=j: self.on_neighbor_odom(j, msg),
+                lambda data, j=j: self.on_neighbor_odom(j, data),
                 SENSOR,
+                raw=True,
             )
 
     def _sync_liveness(self) -> None:
@@ -314,26 +318,28 @@ class RobotNode(Node):
             self._sync_liveness()
         return self.controller.poses_input(stamp_ns, positions, headings, centroid)
 
-    def on_odom(self, msg: Odometry) -> None:
-        """Own odometry (``odom`` source): act with the neighbours heard from recently."""
+    def on_odom(self, data: bytes) -> None:
+        """Own odometry (``odom`` source, raw CDR): act with the neighbours heard from
+        recently."""
         try:
-            stamp_ns, x, y, yaw = odom_to_pose(msg)
+            sec, nanosec, x, y, yaw = decode_odometry(data)
         except BadMessageError as exc:
             self._warn(f"dropped odom: {exc}")
             return
         if self._local_version != self._inputs.version:
             self._sync_liveness()
-        job = self.controller.odom_input(stamp_ns, x, y, yaw)
+        job = self.controller.odom_input(sec * 1_000_000_000 + nanosec, x, y, yaw)
         (result,) = evaluate_robots([job])
-        self.publish_command(msg.header.stamp, result)
+        self.publish_command(Time(sec=sec, nanosec=nanosec), result)
 
-    def on_neighbor_odom(self, j: int, msg: Odometry) -> None:
+    def on_neighbor_odom(self, j: int, data: bytes) -> None:
+        """A neighbour's odometry (raw CDR): its position at its stamp."""
         try:
-            stamp_ns, x, y, _ = odom_to_pose(msg)
+            sec, nanosec, x, y, _ = decode_odometry(data)
         except BadMessageError as exc:
             self._warn(f"dropped {names.robot_topic(j, names.ODOM)}: {exc}")
             return
-        self.controller.neighbor_odom(j, stamp_ns, x, y)
+        self.controller.neighbor_odom(j, sec * 1_000_000_000 + nanosec, x, y)
 
     # --- output -----------------------------------------------------------------------
 

@@ -103,3 +103,28 @@ def decode_pose_array(
     ).reshape(n, POSE_DOUBLES)
     xy, yaw = planar_poses(values[:, 0:2].astype(float), values[:, 3:7].astype(float))
     return sec, nanosec, xy, yaw
+
+
+def decode_odometry(data: bytes) -> tuple[int, int, float, float, float]:
+    """(stamp sec, stamp nanosec, x [m], y [m], yaw [rad]) of a raw ``nav_msgs/Odometry``.
+
+    Reads only the header's stamp and the pose (the covariances and the twist are
+    not looked at): a robot in the ``odom`` source receives one message per neighbour
+    per step, and deserialising each into Python objects was most of its cost.
+    Raises BadMessageError for a truncated or malformed message and for a position
+    or orientation that :func:`aes_ros.ros.conversions.planar_poses` rejects.
+    """
+    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise BadMessageError("Odometry: not a CDR message")
+    order = "<" if data[1] == 1 else ">"
+    sec, nanosec, frame_len = struct.unpack_from(order + "iII", data, _HEADER)
+    child_at = _align(12 + frame_len, 4)
+    if _HEADER + child_at + 4 > len(data):
+        raise BadMessageError("Odometry: truncated header")
+    (child_len,) = struct.unpack_from(order + "I", data, _HEADER + child_at)
+    pose_at = _align(child_at + 4 + child_len, 8)
+    if _HEADER + pose_at + 8 * POSE_DOUBLES > len(data):
+        raise BadMessageError("Odometry: truncated pose")
+    values = struct.unpack_from(order + "7d", data, _HEADER + pose_at)
+    xy, yaw = planar_poses(np.array([values[0:2]]), np.array([values[3:7]]))
+    return sec, nanosec, float(xy[0, 0]), float(xy[0, 1]), float(yaw[0])

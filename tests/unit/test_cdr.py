@@ -59,3 +59,39 @@ def test_decoder_rejects_truncated_and_non_finite_messages() -> None:
             decode_pose_array(serialize_message(msg))
         with pytest.raises(BadMessageError):
             poses_to_arrays(msg)
+
+
+@pytest.mark.parametrize("frame", ["odom", "o", "world_frame"])
+@pytest.mark.parametrize("child", ["mona_3/base_link", "b", ""])
+def test_odometry_decoder_reads_what_rclpy_wrote(frame: str, child: str) -> None:
+    from nav_msgs.msg import Odometry
+
+    from aes_ros.ros.cdr import decode_odometry
+    from aes_ros.ros.conversions import odom_to_pose
+
+    rng = np.random.default_rng(len(frame) + len(child))
+    for _ in range(20):
+        msg = Odometry(child_frame_id=child)
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(rng.integers(1e6)), 123_456_789
+        (msg.pose.pose,) = arrays_to_poses(rng.normal(size=(1, 2)), rng.uniform(-3, 3, 1))
+        msg.twist.twist.linear.x = 0.05  # after the pose: not read
+        sec, nanosec, x, y, yaw = decode_odometry(serialize_message(msg))
+        stamp_ns, *pose = odom_to_pose(msg)
+        assert sec * 10**9 + nanosec == stamp_ns
+        assert (x, y, yaw) == pytest.approx(pose, abs=1e-12)
+
+
+def test_odometry_decoder_refuses_bad_messages() -> None:
+    from nav_msgs.msg import Odometry
+
+    from aes_ros.ros.cdr import decode_odometry
+
+    good = serialize_message(Odometry())
+    for data in (good[:30], b"\x07" + good[1:], b""):
+        with pytest.raises(BadMessageError):
+            decode_odometry(data)
+    msg = Odometry()
+    msg.pose.pose.position.x = float("nan")
+    with pytest.raises(BadMessageError):
+        decode_odometry(serialize_message(msg))
