@@ -34,7 +34,7 @@ from std_srvs.srv import SetBool, Trigger
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
-from aes_ros.ros.cdr import PoseArrayEncoder
+from aes_ros.ros.cdr import OdometryEncoder, PoseArrayEncoder
 from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.diagnostics import SILENT_AFTER, robots_status
 from aes_ros.ros.node_tools import ThrottledWarnings
@@ -211,20 +211,16 @@ class SimBridgeNode(Node):
     def _build_messages(self) -> None:
         """Messages reused every step: only their numbers change.
 
-        ``/swarm/poses`` is written straight into its wire format
-        (:class:`aes_ros.ros.cdr.PoseArrayEncoder`); one Time object is shared by
-        the clock and every odometry header.
+        ``/swarm/poses`` and every robot's odometry are written straight into their
+        wire format (:class:`aes_ros.ros.cdr.PoseArrayEncoder`,
+        :class:`~aes_ros.ros.cdr.OdometryEncoder`).
         """
         self.stamp = Time()
         self.clock_msg = ClockMsg(clock=self.stamp)
         self.poses_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
-        self.odom_msgs = []
-        for i in range(self.n):
-            odom = Odometry()
-            odom.header.frame_id = names.WORLD_FRAME
-            odom.header.stamp = self.stamp
-            odom.child_frame_id = names.base_link(i)
-            self.odom_msgs.append(odom)
+        self.odom_encoders = [
+            OdometryEncoder(names.WORLD_FRAME, names.base_link(i)) for i in range(self.n)
+        ]
 
     def _cmd_callback(self, robot_id: int):
         def on_cmd_vel(msg: Twist) -> None:
@@ -416,23 +412,19 @@ class SimBridgeNode(Node):
         if listened:
             forward, sideways, turn = self.world.velocities()
             encoded = self.poses_encoder.poses  # x, y, z, qx, qy, qz, qw as just published
-            for i, (x, y), (qz, qw) in zip(
+            sec, nanosec = self.stamp.sec, self.stamp.nanosec
+            rows = zip(
                 listened,
                 encoded[listened, 0:2].tolist(),
                 encoded[listened, 5:7].tolist(),
+                forward[listened].tolist(),
+                sideways[listened].tolist(),
+                turn[listened].tolist(),
                 strict=True,
-            ):
-                odom = self.odom_msgs[i]
-                pose = odom.pose.pose
-                pose.position.x = x
-                pose.position.y = y
-                pose.orientation.z = qz
-                pose.orientation.w = qw
-                twist = odom.twist.twist
-                twist.linear.x = float(forward[i])
-                twist.linear.y = float(sideways[i])
-                twist.angular.z = float(turn[i])
-                self.odom_pubs[i].publish(odom)
+            )
+            for i, (x, y), (qz, qw), fwd, side, w in rows:
+                data = self.odom_encoders[i].encode(sec, nanosec, x, y, qz, qw, fwd, side, w)
+                self.odom_pubs[i].publish(data)
         self.last_publish = time.monotonic()
 
     def destroy_node(self) -> None:

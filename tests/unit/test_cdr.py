@@ -95,3 +95,29 @@ def test_odometry_decoder_refuses_bad_messages() -> None:
     msg.pose.pose.position.x = float("nan")
     with pytest.raises(BadMessageError):
         decode_odometry(serialize_message(msg))
+
+
+@pytest.mark.parametrize("child", ["mona_0/base_link", "mona_123/base_link", "b"])
+def test_odometry_encoder_writes_what_rclpy_reads_back(child: str) -> None:
+    from nav_msgs.msg import Odometry
+
+    from aes_ros.ros.cdr import OdometryEncoder
+
+    encoder = OdometryEncoder("odom", child)
+    rng = np.random.default_rng(len(child))
+    for _ in range(10):
+        x, y, fwd, side, turn = rng.normal(size=5)
+        yaw = rng.uniform(-3, 3)
+        qz, qw = np.sin(yaw / 2), np.cos(yaw / 2)
+        sec, nanosec = int(rng.integers(1e6)), int(rng.integers(1e9))
+        msg = Odometry(child_frame_id=child)
+        msg.header.frame_id = "odom"
+        msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
+        p = msg.pose.pose
+        p.position.x, p.position.y, p.orientation.z, p.orientation.w = x, y, qz, qw
+        t = msg.twist.twist
+        t.linear.x, t.linear.y, t.angular.z = fwd, side, turn
+        data = encoder.encode(sec, nanosec, x, y, qz, qw, fwd, side, turn)
+        # equal as messages (rclpy leaves whatever was in memory in the padding bytes)
+        assert deserialize_message(data, Odometry) == msg
+        assert len(data) == len(serialize_message(msg))
