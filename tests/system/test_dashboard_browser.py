@@ -135,8 +135,16 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
     chromium.get(local(url))
     probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
     dial = chromium.find_element(By.ID, "dial")
-    east = ActionChains(chromium).move_to_element_with_offset(dial, 65, 0).click()
+
+    def click_east() -> None:
+        ActionChains(chromium).move_to_element_with_offset(dial, 65, 0).click().perform()
+
     # one message a click: clicked again until discovery has matched the probe
-    probe.until(east.perform, lambda: commands)
+    deadline = time.monotonic() + 30.0
+    while not commands and time.monotonic() < deadline:
+        click_east()
+        time.sleep(0.5)
+    results = (browser.page_state(chromium) or {}).get("results")
+    assert commands, f"no /swarm/cmd from the page; its results: {results}"
     assert commands[-1].linear.x > 0.8 and abs(commands[-1].linear.y) < 0.05
     chromium.screenshot("with-token")
