@@ -24,7 +24,7 @@ import struct
 
 import numpy as np
 
-from aes_ros.ros.conversions import BadMessageError, planar_poses
+from aes_ros.ros.conversions import BadMessageError, planar_pose, planar_poses
 
 #: Encapsulation header of little-endian plain CDR.
 CDR_LE = b"\x00\x01\x00\x00"
@@ -162,7 +162,7 @@ def decode_odometry(data: bytes) -> tuple[int, int, float, float, float]:
     not looked at): a robot in the ``odom`` source receives one message per neighbour
     per step, and deserialising each into Python objects was most of its cost.
     Raises BadMessageError for a truncated or malformed message and for a position
-    or orientation that :func:`aes_ros.ros.conversions.planar_poses` rejects.
+    or orientation that :func:`aes_ros.ros.conversions.planar_pose` rejects.
     """
     if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
         raise BadMessageError("Odometry: not a CDR message")
@@ -175,6 +175,6 @@ def decode_odometry(data: bytes) -> tuple[int, int, float, float, float]:
     pose_at = _align(child_at + 4 + child_len, 8)
     if _HEADER + pose_at + 8 * POSE_DOUBLES > len(data):
         raise BadMessageError("Odometry: truncated pose")
-    values = struct.unpack_from(order + "7d", data, _HEADER + pose_at)
-    xy, yaw = planar_poses(np.array([values[0:2]]), np.array([values[3:7]]))
-    return sec, nanosec, float(xy[0, 0]), float(xy[0, 1]), float(yaw[0])
+    x, y, _, qx, qy, qz, qw = struct.unpack_from(order + "7d", data, _HEADER + pose_at)
+    x, y, yaw = planar_pose(x, y, qx, qy, qz, qw)
+    return sec, nanosec, x, y, yaw

@@ -52,11 +52,22 @@ def pose_to_array(pose: Pose) -> tuple[float, float, float]:
     """(x, y, yaw) of a Pose; raises BadMessageError if a value is not finite or a
     coordinate is beyond ±MAX_COORDINATE."""
     o = pose.orientation
-    if not all(abs(v) <= MAX_QUATERNION for v in (o.x, o.y, o.z, o.w)):
+    return planar_pose(pose.position.x, pose.position.y, o.x, o.y, o.z, o.w)
+
+
+def planar_pose(
+    x: float, y: float, qx: float, qy: float, qz: float, qw: float
+) -> tuple[float, float, float]:
+    """(x, y, yaw) of one pose, with the checks of :func:`planar_poses` in plain floats
+    (a message per robot per step: numpy's per-call cost would dominate)."""
+    if not all(abs(v) <= MAX_QUATERNION for v in (qx, qy, qz, qw)):  # also false for NaN
         raise BadMessageError("pose has an orientation that is not a rotation")
-    yaw = quaternion_to_yaw(o)
-    _check_coordinates((pose.position.x, pose.position.y), "pose")
-    return pose.position.x, pose.position.y, yaw
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise BadMessageError("pose has a non-finite value")
+    if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
+        raise BadMessageError(f"pose has a coordinate beyond ±{MAX_COORDINATE:g} m")
+    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
+    return x, y, yaw
 
 
 def poses_to_arrays(msg: PoseArray, expected: int | None = None) -> tuple[np.ndarray, np.ndarray]:
