@@ -38,7 +38,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput, evaluate_robots
+from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_odometry
@@ -293,10 +293,15 @@ class RobotNode(Node):
             )
 
     def _sync_liveness(self) -> None:
-        """Listen to the ``aes_force`` of every neighbour not run by this process
-        (one run here is alive as long as this robot is)."""
+        """``poses`` source: listen to the ``aes_force`` of every neighbour not run by
+        this process (one run here is alive as long as this robot is). The ``odom``
+        source needs none: a neighbour's own odometry stamps say whether it is there
+        (:meth:`RobotController.odom_input`), and each extra reader would make every
+        robot publish ``aes_force`` too."""
         self._local_version = self._inputs.version
         wanted = set(self.controller.neighbors.tolist()) - self._inputs.local_ids()
+        if not self.uses_poses:
+            wanted = set()
         for j in set(self._alive_subs) - wanted:
             self.destroy_subscription(self._alive_subs.pop(j))
             self.controller.liveness.forget(j)
@@ -329,8 +334,7 @@ class RobotNode(Node):
         if self._local_version != self._inputs.version:
             self._sync_liveness()
         job = self.controller.odom_input(sec * 1_000_000_000 + nanosec, x, y, yaw)
-        (result,) = evaluate_robots([job])
-        self.publish_command(Time(sec=sec, nanosec=nanosec), result)
+        self._inputs.odom_input(self, Time(sec=sec, nanosec=nanosec), job)
 
     def on_neighbor_odom(self, j: int, data: bytes) -> None:
         """A neighbour's odometry (raw CDR): its position at its stamp."""

@@ -6,7 +6,9 @@ with hundreds of robots, reads the swarm's topics through one :class:`SwarmInput
 ``/swarm/desired_velocity``, ``/swarm/rotation_center`` and ``/swarm/enabled``.
 Each message is checked and converted once and handed to every robot, and the
 control law of all robots acting on a poses message is evaluated in one call
-(:func:`aes_ros.model.evaluate_robots`). So both layouts take the same path.
+(:func:`aes_ros.model.evaluate_robots`); in the ``odom`` source the robots' inputs of
+one step are gathered and evaluated together too (:meth:`SwarmInputs.odom_input`).
+So both layouts take the same path.
 
 It also knows which robots run in this process, so that a robot listens for the
 liveness of its other neighbours only (:attr:`version` changes with that set).
@@ -14,15 +16,17 @@ liveness of its other neighbours only (:attr:`version` changes with that set).
 
 from __future__ import annotations
 
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from aes_ros.model import evaluate_robots
+from aes_ros.model import RobotInput, evaluate_robots
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
@@ -32,6 +36,10 @@ from aes_ros.ros.qos import LATCHED, SENSOR
 
 if TYPE_CHECKING:
     from robot_node.node import RobotNode
+
+#: Wall seconds an odometry batch waits for its last robots (the bridge publishes a
+#: step's odometry within a millisecond or two).
+ODOM_WAIT = 0.004
 
 
 class SwarmInputs:
@@ -44,6 +52,10 @@ class SwarmInputs:
         self.version = 0
         self._warn = ThrottledWarnings(node.get_logger())
         self._poses_sub = None
+        self._odom_robots = 0
+        self._odom_pending: dict[RobotNode, tuple[Time, RobotInput]] = {}
+        self._odom_since = 0.0
+        self._odom_timer = None
         node.create_subscription(
             TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
         )
@@ -75,6 +87,11 @@ class SwarmInputs:
         elif not wanted and self._poses_sub is not None:
             self.node.destroy_subscription(self._poses_sub)
             self._poses_sub = None
+        self._odom_robots = sum(1 for robot in self.robots if not robot.uses_poses)
+        if self._odom_robots and self._odom_timer is None:
+            steady = Clock(clock_type=ClockType.STEADY_TIME)
+            self._odom_timer = self.node.create_timer(ODOM_WAIT, self._flush_late, clock=steady)
+        self._odom_pending = {r: v for r, v in self._odom_pending.items() if r in self.robots}
 
     def local_ids(self) -> set[int]:
         """Robot ids run by this process."""
@@ -102,6 +119,33 @@ class SwarmInputs:
                 acting.append(robot)
                 inputs.append(job)
         for robot, result in zip(acting, evaluate_robots(inputs), strict=True):
+            robot.publish_command(stamp, result)
+
+    def odom_input(self, robot: RobotNode, stamp: Time, job: RobotInput) -> None:
+        """An ``odom``-source robot's input for its own odometry at ``stamp``.
+
+        The bridge publishes every robot's odometry of a step at once, so the inputs
+        are gathered and evaluated in one call once every such robot of this process
+        has one (as for ``/swarm/poses``: robot by robot, the numpy work per call
+        was most of a robot's step). A batch that cannot fill (an odometry message
+        lost, a robot of another rate) goes out when a robot's next input comes, or
+        at the latest ODOM_WAIT s after its first input."""
+        if robot in self._odom_pending:
+            self._flush_odom()
+        if not self._odom_pending:
+            self._odom_since = time.monotonic()
+        self._odom_pending[robot] = (stamp, job)
+        if len(self._odom_pending) >= self._odom_robots:
+            self._flush_odom()
+
+    def _flush_late(self) -> None:
+        if self._odom_pending and time.monotonic() - self._odom_since >= ODOM_WAIT:
+            self._flush_odom()
+
+    def _flush_odom(self) -> None:
+        pending, self._odom_pending = self._odom_pending, {}
+        results = evaluate_robots([job for _, job in pending.values()])
+        for (robot, (stamp, _)), result in zip(pending.items(), results, strict=True):
             robot.publish_command(stamp, result)
 
     def on_desired_velocity(self, msg: TwistStamped) -> None:
