@@ -126,6 +126,20 @@ def decode_stamp(data: bytes) -> tuple[int, int]:
     return struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, _HEADER)
 
 
+def _header_and_count(data: bytes, what: str) -> tuple[str, int, int, int, int]:
+    """Byte order, stamp (sec, nanosec) of the leading ``std_msgs/Header``, and the
+    offset and value of the uint32 after it (a sequence's length, or a string's)."""
+    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
+        raise BadMessageError(f"{what}: not a CDR message")
+    order = "<" if data[1] == 1 else ">"
+    sec, nanosec, frame_len = struct.unpack_from(order + "iII", data, _HEADER)
+    at = _align(12 + frame_len, 4)
+    if _HEADER + at + 4 > len(data):
+        raise BadMessageError(f"{what}: truncated header")
+    (value,) = struct.unpack_from(order + "I", data, _HEADER + at)
+    return order, sec, nanosec, at, value
+
+
 def decode_pose_array(
     data: bytes, expected: int | None = None
 ) -> tuple[int, int, np.ndarray, np.ndarray]:
@@ -135,14 +149,7 @@ def decode_pose_array(
     than ``expected`` (if given), and for the values
     :func:`aes_ros.ros.conversions.planar_poses` rejects (non-finite, out of range).
     """
-    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
-        raise BadMessageError("PoseArray: not a CDR message")
-    order = "<" if data[1] == 1 else ">"
-    sec, nanosec, name_len = struct.unpack_from(order + "iII", data, _HEADER)
-    count_at = _align(12 + name_len, 4)
-    if _HEADER + count_at + 4 > len(data):
-        raise BadMessageError("PoseArray: truncated header")
-    (n,) = struct.unpack_from(order + "I", data, _HEADER + count_at)
+    order, sec, nanosec, count_at, n = _header_and_count(data, "PoseArray")
     if expected is not None and n != expected:
         raise BadMessageError(f"PoseArray has {n} poses, expected {expected}")
     poses_at = _align(count_at + 4, 8) if n else count_at + 4
@@ -164,14 +171,7 @@ def decode_odometry(data: bytes) -> tuple[int, int, float, float, float]:
     Raises BadMessageError for a truncated or malformed message and for a position
     or orientation that :func:`aes_ros.ros.conversions.planar_pose` rejects.
     """
-    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
-        raise BadMessageError("Odometry: not a CDR message")
-    order = "<" if data[1] == 1 else ">"
-    sec, nanosec, frame_len = struct.unpack_from(order + "iII", data, _HEADER)
-    child_at = _align(12 + frame_len, 4)
-    if _HEADER + child_at + 4 > len(data):
-        raise BadMessageError("Odometry: truncated header")
-    (child_len,) = struct.unpack_from(order + "I", data, _HEADER + child_at)
+    order, sec, nanosec, child_at, child_len = _header_and_count(data, "Odometry")
     pose_at = _align(child_at + 4 + child_len, 8)
     if _HEADER + pose_at + 8 * POSE_DOUBLES > len(data):
         raise BadMessageError("Odometry: truncated pose")
