@@ -31,7 +31,6 @@ import argparse
 import asyncio
 import math
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -44,38 +43,17 @@ import aiohttp
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from bench_faults import pid_of
+from bench_ros import cpu_seconds
 from helpers.browser import headless_chromium, page_state, unavailable
+from helpers.dashboard import URL, socket_url
 
 from aes_ros import scenario
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.plan import ros_args, write_scenario
 
 BIN = Path(sys.executable).parent
-URL = re.compile(rf"{names.DASHBOARD_READY} (http://\S+)")
-TICKS = os.sysconf("SC_CLK_TCK")
 TARGET_CPU_PCT, TARGET_FPS_1000 = 10.0, 20.0
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time of process ``pid`` so far [s]."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / TICKS
-
-
-def pid_of(domain: str, needle: str) -> int:
-    """The live process of ``domain`` whose command line holds ``needle``."""
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit():
-            continue
-        try:
-            env = (entry / "environ").read_bytes().split(b"\0")
-            if f"ROS_DOMAIN_ID={domain}".encode() in env and needle.encode() in (
-                entry / "cmdline"
-            ).read_bytes().replace(b"\0", b" "):
-                return int(entry.name)
-        except OSError:
-            continue
-    raise RuntimeError(f"no process {needle!r} in domain {domain}")
 
 
 def wait_url(log: Path, proc: subprocess.Popen, timeout: float) -> str:
@@ -94,7 +72,7 @@ class ByteCounter:
     """A WebSocket viewer in a background thread that counts what it receives."""
 
     def __init__(self, url: str) -> None:
-        self.url = "ws" + url.split("?")[0].removeprefix("http").rstrip("/") + "/ws"
+        self.url = socket_url(url)
         self.bytes = 0
         self.frames = 0
         self.ws: aiohttp.ClientWebSocketResponse | None = None

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario
-from aes_ros.sweep.engine import Sweep, results
+from aes_ros.sweep.engine import Sweep, local_cluster, results
 from aes_ros.sweep.runs import make_tasks
 from aes_ros.sweep.spec import parse_axis, points
 
@@ -96,8 +96,6 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.child is not None:
         return child(args)
-    from dask.distributed import LocalCluster
-
     logging.getLogger("distributed").setLevel(logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="aes-bench-sweep-"))
 
@@ -115,13 +113,7 @@ def main(argv: list[str] | None = None) -> int:
 
     clusters = {}
     for k in (1, 2):
-        clusters[k] = LocalCluster(
-            n_workers=k,
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            env={"NUMBA_NUM_THREADS": "1"},
-        )
+        clusters[k] = local_cluster(k, numba_threads=1)
         timed(warm, warm_tasks, scheduler=clusters[k].scheduler_address)  # JIT loaded
     best: dict[str, float] = {}
     tables: dict[str, list] = {}

@@ -16,7 +16,6 @@ Usage (one process per block of robots, next to ``aes-sim-bridge`` and ``aes-sup
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 
 import numpy as np
@@ -29,12 +28,8 @@ from rclpy.node import Node
 from aes_ros import scenario as scenario_mod
 from aes_ros.model import SwarmCommand, robot_command
 from aes_ros.ros import interface as names
+from aes_ros.ros.conversions import pose_to_array
 from aes_ros.ros.qos import COMMAND, LATCHED, SENSOR
-
-
-def _yaw(msg: Odometry) -> float:
-    q = msg.pose.pose.orientation
-    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
 class NaiveRobot(Node):
@@ -71,11 +66,11 @@ class NaiveRobot(Node):
         self.command = SwarmCommand(self.command.direction, self.command.omega, center)
 
     def on_odom(self, msg: Odometry) -> None:
-        position = np.array([msg.pose.pose.position.x, msg.pose.pose.position.y])
+        x, y, yaw = pose_to_array(msg.pose.pose)
         ids = [j for j in self.neighbors if j in self.heard]
         rest = np.array([self.rest[self.neighbors.index(j)] for j in ids])
         out = robot_command(
-            position, _yaw(msg), np.array([self.heard[j] for j in ids]).reshape(-1, 2), rest,
+            np.array([x, y]), yaw, np.array([self.heard[j] for j in ids]).reshape(-1, 2), rest,
             self.gains, self.command, self.dt, self.rng,
         )  # fmt: skip
         twist = Twist()

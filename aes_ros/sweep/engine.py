@@ -164,23 +164,31 @@ def _run(sweep: Sweep, task: Task) -> list[dict[str, Any]]:
     )
 
 
+def local_cluster(workers: int, numba_threads: int | None = None) -> Any:
+    """A local Dask cluster of ``workers`` single-threaded worker processes, the cores
+    shared out among their numba kernels (``numba_threads`` each; default: an even share)."""
+    from dask.distributed import LocalCluster
+
+    threads = numba_threads or max(1, (os.cpu_count() or 1) // workers)
+    return LocalCluster(
+        n_workers=workers,
+        threads_per_worker=1,
+        processes=True,
+        dashboard_address=None,
+        env={"NUMBA_NUM_THREADS": str(threads)},
+    )
+
+
 def _dask(
     sweep: Sweep, tasks: list[Task], scheduler: str | None, workers: int | None
 ) -> Iterator[list[dict[str, Any]]]:
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, as_completed
 
     if scheduler is not None:
         client = Client(scheduler, timeout="30s")
         cluster = None
     else:
-        threads = max(1, (os.cpu_count() or 1) // int(workers or 1))
-        cluster = LocalCluster(
-            n_workers=int(workers or 1),
-            threads_per_worker=1,
-            processes=True,
-            dashboard_address=None,
-            env={"NUMBA_NUM_THREADS": str(threads)},
-        )
+        cluster = local_cluster(int(workers or 1))
         client = Client(cluster)
     try:
         futures = [
