@@ -6,8 +6,8 @@ A control message is one JSON object (at most :data:`MAX_MESSAGE_BYTES`):
   (``/swarm/cmd``); v_d and ω within the ranges of ``direction`` and ``omega``;
 - ``{"type": "enable", "enabled": true}``: ``/swarm/enable``;
 - ``{"type": "gain", "name": "alpha", "value": 0.1}``: a parameter set on every
-  robot node and the supervisor (one of :data:`GAINS`; finite; its range is the
-  nodes' to check, and their reasons are shown);
+  robot node and the supervisor (one of :data:`dashboard_node.view.GAIN_NAMES`;
+  finite; its range is the nodes' to check, and their reasons are shown);
 - ``{"type": "sim", "action": "pause" | "resume" | "reset"}``: the bridge's services.
 
 Anything else (not JSON, not an object, an unknown type or field, a wrong type,
@@ -28,8 +28,6 @@ from dashboard_node.view import GAIN_NAMES
 
 #: The longest control message accepted [bytes].
 MAX_MESSAGE_BYTES = 4096
-#: The gains a viewer may set.
-GAINS = GAIN_NAMES
 SIM_ACTIONS = ("pause", "resume", "reset")
 
 
@@ -105,8 +103,8 @@ def parse_control(text: str | bytes) -> Control:
         return Enable(message["enabled"])
     if kind == "gain":
         name = message["name"]
-        if name not in GAINS:
-            raise ControlError(f"name: {name!r} is not one of {', '.join(GAINS)}")
+        if name not in GAIN_NAMES:
+            raise ControlError(f"name: {name!r} is not one of {', '.join(GAIN_NAMES)}")
         return SetGain(name, _number(name, message["value"]))
     action = message["action"]
     if action not in SIM_ACTIONS:

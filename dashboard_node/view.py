@@ -131,6 +131,7 @@ class SwarmView:
             "n": self.n,
             "springs": self.pairs.tolist(),
             "diameter": 0.08,
+            "gains": list(GAIN_NAMES),
             "scenario": self.label,
             "history": [[_r(v) for v in row] for row in self.history],
         }

@@ -3,7 +3,6 @@
 // No libraries: a canvas for the arena, the dial and the strip charts.
 
 const HISTORY_S = 60;
-const GAINS = ["alpha", "beta", "k", "w_l", "w_r"];
 
 // Everything the page knows; window.aesDashboard for the tests and the curious.
 const state = {
@@ -54,6 +53,7 @@ function receive(message) {
   if (message.type === "sheet") {
     state.sheet = message;
     state.history = message.history || [];
+    gainRows(message.gains || []);
     state.fitted = false;
   } else if (message.type === "frame") {
     state.frame = message;
@@ -288,6 +288,24 @@ function fit(frame) {
   state.fitted = true;
 }
 
+// One row per gain the server accepts (the sheet lists them: dashboard_node/view.py).
+function gainRows(names) {
+  if ($("gains").querySelector(".gain")) return;
+  for (const name of names) {
+    const row = document.createElement("div");
+    row.className = "gain";
+    row.innerHTML = `<label for="gain-${name}">${name}</label>` +
+      `<input id="gain-${name}" type="number" step="any"><button type="button">set</button>`;
+    row.querySelector("button").addEventListener("click", () => {
+      const text = row.querySelector("input").value.trim();
+      const value = Number(text);
+      if (text === "" || !Number.isFinite(value)) { note(false, `${name}: ${text || "(empty)"} is not a number`); return; }
+      send({ type: "gain", name, value });
+    });
+    $("gains").appendChild(row);
+  }
+}
+
 function note(ok, text) {
   state.results.push({ ok, text });
   const item = document.createElement("li");
@@ -331,19 +349,6 @@ function setup() {
     send({ type: "enable", enabled: state.frame ? state.frame.enabled === false : false }));
   for (const action of ["pause", "resume", "reset"]) {
     $(action).addEventListener("click", () => send({ type: "sim", action }));
-  }
-  for (const name of GAINS) {
-    const row = document.createElement("div");
-    row.className = "gain";
-    row.innerHTML = `<label for="gain-${name}">${name}</label>` +
-      `<input id="gain-${name}" type="number" step="any"><button type="button">set</button>`;
-    row.querySelector("button").addEventListener("click", () => {
-      const text = row.querySelector("input").value.trim();
-      const value = Number(text);
-      if (text === "" || !Number.isFinite(value)) { note(false, `${name}: ${text || "(empty)"} is not a number`); return; }
-      send({ type: "gain", name, value });
-    });
-    $("gains").appendChild(row);
   }
   // pan and zoom; panning stops following the swarm
   const arena = $("arena");
