@@ -158,15 +158,26 @@ def draw_noise(
     """
     if out is None:
         out = (np.empty(shape), np.empty(shape), np.empty(shape))
-    xi_x, xi_y, xi_theta = out
     angles = rng.random(size=shape)
+    rng.standard_normal(out=out[2])
+    return unit_noise(angles, out)
+
+
+def unit_noise(uniforms: np.ndarray, out: Noise) -> Noise:
+    """Fill ``out``'s ξ̂_r components from ``uniforms`` in [0, 1) (consumed: scaled in
+    place to the angle); ``out[2]`` (ξ_θ) is left as it is. Returns ``out``.
+
+    Split from :func:`draw_noise` so that many generators' draws (one per robot
+    of a process) are turned into unit vectors in one call, with the same result.
+    """
+    xi_x, xi_y, _ = out
+    angles = uniforms
     angles *= 2.0 * np.pi
     angles -= np.pi
     angles32 = angles.astype(np.float32)
     np.cos(angles32, out=xi_x, casting="unsafe")
     np.sin(angles32, out=xi_y, casting="unsafe")
-    rng.standard_normal(out=xi_theta)
-    return xi_x, xi_y, xi_theta
+    return out
 
 
 def motion_commands(
@@ -381,6 +392,7 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
     directions, omegas, centers = np.empty((r, 2)), np.empty(r), np.empty((r, 2))
     dt, limits = np.empty(r), np.full((r, 2), np.inf)
     noise = (np.zeros(r), np.zeros(r), np.zeros(r))
+    noisy, uniforms = [], []
     for row, job in enumerate(inputs):
         n = len(job.rest_lengths)
         positions[row] = job.position
@@ -395,9 +407,13 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
         dt[row] = job.dt
         if job.limits is not None:
             limits[row] = job.limits
-        if job.rng is not None:
-            xi = draw_noise(job.rng)
-            noise[0][row], noise[1][row], noise[2][row] = xi[0], xi[1], xi[2]
+        if job.rng is not None:  # draws in draw_noise's order: angle, then ξ_θ
+            noisy.append(row)
+            uniforms.append(job.rng.random())
+            noise[2][row] = job.rng.standard_normal()
+    if noisy:
+        xi = unit_noise(np.array(uniforms), (np.empty(len(noisy)), np.empty(len(noisy)), None))
+        noise[0][noisy], noise[1][noisy] = xi[0], xi[1]
     gains = Gains(**{name: gain_rows[:, col] for col, name in enumerate(GAIN_FIELDS)})
     u, turn_rate, forces = robot_commands(
         positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits

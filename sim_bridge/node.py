@@ -34,8 +34,8 @@ from std_srvs.srv import SetBool, Trigger
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
-from aes_ros.ros.cdr import OdometryEncoder, PoseArrayEncoder
-from aes_ros.ros.conversions import stamp_to_ns
+from aes_ros.ros.cdr import OdometryEncoder, PoseArrayEncoder, decode_twist
+from aes_ros.ros.conversions import BadMessageError, stamp_to_ns
 from aes_ros.ros.diagnostics import SILENT_AFTER, robots_status
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, LATEST_COMMAND, SENSOR, STREAM_WRITER
@@ -176,6 +176,7 @@ class SimBridgeNode(Node):
                 self._cmd_callback(i),
                 LATEST_COMMAND,
                 event_callbacks=quiet_sub if i else None,
+                raw=True,  # decoded by struct: no Twist object per command
             )
             for i in range(self.n)
         ]
@@ -223,8 +224,8 @@ class SimBridgeNode(Node):
         ]
 
     def _cmd_callback(self, robot_id: int):
-        def on_cmd_vel(msg: Twist) -> None:
-            self.on_cmd_vel(robot_id, msg)
+        def on_cmd_vel(data: bytes) -> None:
+            self.on_cmd_vel(robot_id, data)
 
         return on_cmd_vel
 
@@ -239,9 +240,14 @@ class SimBridgeNode(Node):
         return self.dt / self.real_time_factor if self.real_time_factor > 0.0 else 0.0
 
     # --- callbacks ---------------------------------------------------------------
-    def on_cmd_vel(self, robot_id: int, msg: Twist) -> None:
-        """Store robot ``robot_id``'s command; in lockstep, step once all are in."""
-        u, turn = msg.linear.x, msg.angular.z
+    def on_cmd_vel(self, robot_id: int, data: bytes) -> None:
+        """Store robot ``robot_id``'s command (raw ``Twist``: linear.x, angular.z); in
+        lockstep, step once all are in."""
+        try:
+            u, turn = decode_twist(data)
+        except BadMessageError as exc:
+            self._warn(f"dropped a cmd_vel of robot {robot_id}: {exc}")
+            return
         if not (math.isfinite(u) and math.isfinite(turn)):
             self._warn(f"dropped a non-finite cmd_vel: robot {robot_id}")
             return

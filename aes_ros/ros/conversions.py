@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Twist, Vector3Stamped
+from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Twist
 from nav_msgs.msg import Odometry
 
 from aes_ros.frames import yaw_from_quaternion
@@ -163,13 +163,4 @@ def unicycle_twist(linear: float, angular: float) -> Twist:
     msg = Twist()
     msg.linear.x = float(linear)
     msg.angular.z = float(angular)
-    return msg
-
-
-def vector3_stamped(vector: np.ndarray, stamp: Time, frame_id: str) -> Vector3Stamped:
-    """A 2-D vector (x, y) as Vector3Stamped (z = 0)."""
-    msg = Vector3Stamped()
-    msg.header.stamp = stamp
-    msg.header.frame_id = frame_id
-    msg.vector.x, msg.vector.y = float(vector[0]), float(vector[1])
     return msg

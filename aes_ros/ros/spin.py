@@ -14,6 +14,7 @@ shuts rclpy down in order.
 
 from __future__ import annotations
 
+import gc
 import signal
 import threading
 import time
@@ -124,6 +125,9 @@ def run_node_process(
         # Inside the try: a bad --params-file is a startup error, not a traceback.
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
         node = make()
+        # The nodes' objects live as long as the process: leave them out of every
+        # garbage collection (full collections over them were 2-3 % of the bridge).
+        gc.freeze()
         spin(spun(node))
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
