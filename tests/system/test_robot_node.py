@@ -326,6 +326,15 @@ def test_lockstep_with_supervisor_equals_offline_model(spawn, probe):
 
     xy, yaw = scen.initial_state(seed=7)
     ref_xy, ref_yaw = xy.copy(), yaw.copy()
+    # Commands and forces are paired by their index below. A robot publishes
+    # aes_force only once it sees a reader, cmd_vel always: so first wait until the
+    # host has answered with both (every reader matched), then start counting.
+    warmup = poses_msg(xy, yaw, 0.5)
+    answered = lambda: all(f and c for f, c in zip(forces, cmds, strict=True))  # noqa: E731
+    probe.until(lambda: poses.publish(warmup), answered)
+    time.sleep(0.5)
+    for received in (*cmds, *forces):
+        received.clear()
     dt = 0.05
     for step in range(40):
         msg = poses_msg(xy, yaw, 1.0 + step * dt)
