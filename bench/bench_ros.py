@@ -28,6 +28,12 @@ cpu_us_per_robot_step=… baseline_cpu_us_per_robot_step=… efficiency_ratio=�
 efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses (or the first
 configuration measured if that one is not in the grid).
 
+Every figure is printed beside the machine's speed in the same run:
+``machine_ref_us`` is µs of one agent-step of ``bench/bench_sim.py``'s per-agent
+Python loop (100 robots, combined; measured before and after the grid, the
+mean printed), and ``cpu_per_ref`` is ``cpu_us_per_robot_step`` in those units
+(a slower machine has both larger; their ratio moves much less).
+
 ``cpu_us_per_robot_step`` is the machine-independent figure: µs of CPU of the whole
 system (bridge, supervisor, robot processes) per robot per control step answered. The
 same run measures it for the straightforward design other ROS swarm packages use
@@ -53,6 +59,9 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_sim import direct_port  # a sibling script, not a package
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 #: The standard grid: (robots, rate [Hz], source, layout).
@@ -115,6 +124,19 @@ HEADER = [
     "p50 [ms]", "p99 [ms]", "CPU bridge %", "CPU sup %", "CPU robots %", "CPU launch %",
     "mem [MB]", "CPU µs/robot-step",
 ]  # fmt: skip
+
+
+def machine_reference_us(steps: int = 30) -> float:
+    """µs of one agent-step of bench_sim's per-agent Python loop on this machine now
+    (the best of three runs of ``steps`` steps of the 100-robot combined scenario)."""
+    sc = scenario_mod.load("combined")
+    n = len(sc.nominal_positions())
+    best = float("inf")
+    for _ in range(3):
+        start = time.perf_counter()
+        direct_port(sc, 0, steps)
+        best = min(best, time.perf_counter() - start)
+    return best / (n * steps) * 1e6
 
 
 def cpu_seconds(pid: int) -> float:
@@ -370,6 +392,7 @@ def main(argv: list[str] | None = None) -> int:
         grid = STANDARD_GRID
 
     args.out.mkdir(parents=True, exist_ok=True)
+    ref_before = machine_reference_us()
     rows: list[Row] = []
     try:
         from tqdm import tqdm
@@ -410,9 +433,16 @@ def main(argv: list[str] | None = None) -> int:
             f" efficiency_ratio={ratio:.2f} efficiency_ratio_odom={ratio_odom:.2f}"
             f" baseline_rate_hz={naive.rate_median_hz:.2f}"
         )
+    ref_after = machine_reference_us()
+    ref = 0.5 * (ref_before + ref_after)
+    machine = (
+        f"machine: bench_sim per-agent loop {ref:.2f} µs per agent-step "
+        f"(before the grid {ref_before:.2f}, after {ref_after:.2f})"
+    )
     print()
     print_table(rows)
     print(line)
+    print(machine)
     if ratios:
         print(
             f"CPU per robot-step, {key.robots} robots at {key.rate:g} Hz: this design "
@@ -423,12 +453,13 @@ def main(argv: list[str] | None = None) -> int:
         )
     write_csv(rows, args.out / "bench_ros.csv")
     plot(rows, args.out / "bench_ros.png")
-    (args.out / "physics.txt").write_text(line + "\n")
+    (args.out / "physics.txt").write_text(line + "\n" + machine + "\n")
     print(
         f"RESULT robots={key.robots} hz={key.rate:g} source={key.source} "
         f"rate_hz={key.rate_median_hz:.2f} rate_min_hz={key.rate_min_hz:.2f} rtf={key.rtf:.3f} "
         f"p99_ms={key.p99_ms:.1f} start_s={key.start_s:.1f} "
-        f"cpu_us_per_robot_step={key.cpu_us_per_robot_step:.1f}{ratios}"
+        f"cpu_us_per_robot_step={key.cpu_us_per_robot_step:.1f}{ratios} "
+        f"machine_ref_us={ref:.2f} cpu_per_ref={key.cpu_us_per_robot_step / ref:.1f}"
     )
     return 0
 

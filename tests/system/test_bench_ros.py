@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -26,6 +28,12 @@ def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
     assert float(fields["cpu_us_per_robot_step"]) > 0.0
     assert float(fields["baseline_cpu_us_per_robot_step"]) > 0.0
     assert float(fields["baseline_rate_hz"]) > 0.0  # the naive robots answered too
+    # the machine's speed from the same run, and the figure in its units
+    ref = float(fields["machine_ref_us"])
+    assert ref > 0.0
+    assert float(fields["cpu_per_ref"]) == pytest.approx(
+        float(fields["cpu_us_per_robot_step"]) / ref, rel=0.01
+    )
     rows = list(csv.DictReader((tmp_path / "bench_ros.csv").open()))
     assert [(r["source"], r["design"]) for r in rows] == [
         ("poses", "aes"), ("odom", "aes"), ("odom", "naive")
