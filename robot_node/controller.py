@@ -75,8 +75,6 @@ class RobotController:
     command : the swarm command until the supervisor speaks (the scenario's).
     warn : called with a warning about an input that was dropped or degraded.
     info : called with a note (a neighbour heard again).
-    heard : stamps [ns] of robots heard from, shared with the other robots of the
-        process (None: this controller's own).
     """
 
     def __init__(
@@ -85,7 +83,6 @@ class RobotController:
         command: SwarmCommand,
         warn: Callable[[str], object] = lambda _text: None,
         info: Callable[[str], object] = lambda _text: None,
-        heard: dict[int, int] | None = None,
     ) -> None:
         self._warn, self._info = warn, info
         self.direction = tuple(command.direction)
@@ -94,7 +91,7 @@ class RobotController:
         self.center = RotationCenterRule(
             None if command.center is None else np.asarray(command.center)
         )
-        self.liveness = NeighborLiveness(0, heard)
+        self.liveness = NeighborLiveness(0)
         self.dt = DEFAULT_DT
         self._last_stamp: int | None = None
         self._neighbor_odom: dict[int, tuple[int, float, float]] = {}
@@ -136,8 +133,8 @@ class RobotController:
         """The supervisor's v_d and ω (already checked against their ranges)."""
         self.direction, self.omega = direction, omega
 
-    def heard(self, neighbor: int, stamp_ns: int) -> None:
-        """A neighbour is alive at ``stamp_ns`` (e.g. by its process's heartbeat)."""
+    def heard_force(self, neighbor: int, stamp_ns: int) -> None:
+        """A neighbour's ``aes_force``: it is alive at its stamp."""
         self.liveness.heard(neighbor, stamp_ns)
 
     def neighbor_odom(self, neighbor: int, stamp_ns: int, x: float, y: float) -> None:

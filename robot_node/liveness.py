@@ -1,8 +1,7 @@
 """Which neighbours of a robot are alive, judged by the stamps of what they send (pure).
 
 A neighbour counts as heard from at the stamp of its latest message (its
-process's heartbeat on ``/swarm/heartbeat``, or its odometry in the ``odom``
-source). One whose latest stamp is
+``aes_force``, or its odometry in the ``odom`` source). One whose latest stamp is
 more than ``timeout_ns`` behind the robot's own pose is left out of the spring
 sum; one never heard from counts as alive (it may still be starting), and one
 that speaks again is taken back at once.
@@ -33,11 +32,9 @@ class NeighborLiveness:
     ([False, True], 4)
     """
 
-    def __init__(self, timeout_ns: int, heard: dict[int, int] | None = None) -> None:
+    def __init__(self, timeout_ns: int) -> None:
         self.timeout_ns = int(timeout_ns)
-        #: Stamp [ns] of each robot's latest message; may be shared by the robots of a
-        #: process (one table filled from the heartbeats for all of them).
-        self._heard: dict[int, int] = {} if heard is None else heard
+        self._heard: dict[int, int] = {}
         self._silent: set[int] = set()
 
     def __bool__(self) -> bool:

@@ -88,11 +88,10 @@ class RobotNode(Node):
     - ``clip`` (bool, default true): clip commands to the robot's limits.
     - ``neighbor_timeout`` (double [s], default 1.0): a neighbour not heard from
       for longer than this (by stamp, relative to the own pose) is left out of the
-      sum. Heard from = in the ``poses`` source, its process's heartbeat on
-      ``/swarm/heartbeat`` (a robot whose controller died still has a pose from the
-      tracking system or the simulator); in the ``odom`` source, its odometry. A
-      neighbour never heard from counts as alive (it may still be starting); one
-      that speaks again is taken back at once.
+      sum. Heard from = its ``aes_force`` (both sources; a robot whose controller
+      died still has a pose from the tracking system or the simulator) and, in the
+      ``odom`` source, its odometry. A neighbour never heard from counts as alive
+      (it may still be starting); one that speaks again is taken back at once.
     - ``seed`` (int, default 0): noise seed, combined with ``robot_id``; -1 = random.
     - ``neighbor_source`` (string, ``poses`` | ``odom``, default ``poses``).
     - ``scenario`` (string, default ``combined``) and ``num_robots`` (int, default
@@ -127,17 +126,15 @@ class RobotNode(Node):
         self._force_encoder = Vector3StampedEncoder(names.WORLD_FRAME)
         self.counter = PublishCounter()
 
-        alone = inputs is None
-        self._inputs = SwarmInputs(self) if alone else inputs
         self.controller = RobotController(
-            self._settings(),
-            scen.command,
-            self._warn,
-            self.get_logger().info,
-            heard=self._inputs.heard,
+            self._settings(), scen.command, self._warn, self.get_logger().info
         )
         self._odom_sub = None
         self._neighbor_subs: dict[int, Any] = {}
+        self._alive_subs: dict[int, Any] = {}
+        alone = inputs is None
+        self._inputs = SwarmInputs(self) if alone else inputs
+        self._local_version = -1
         self._sync_subscriptions()
         self._inputs.add(self)
         if alone:
@@ -188,7 +185,7 @@ class RobotNode(Node):
             "neighbor_timeout",
             1.0,
             rp.float_descriptor(
-                "leave out a neighbour not heard from (heartbeat, odom) for longer than this",
+                "leave out a neighbour not heard from (aes_force, odom) for longer than this",
                 "s",
                 0.0,
                 1e6,
@@ -297,12 +294,35 @@ class RobotNode(Node):
                 raw=True,
             )
 
+    def _sync_liveness(self) -> None:
+        """``poses`` source: listen to the ``aes_force`` of every neighbour not run by
+        this process (one run here is alive as long as this robot is). The ``odom``
+        source needs none: a neighbour's own odometry stamps say whether it is there
+        (:meth:`RobotController.odom_input`), and each extra reader would make every
+        robot publish ``aes_force`` too."""
+        self._local_version = self._inputs.version
+        wanted = set(self.controller.neighbors.tolist()) - self._inputs.local_ids()
+        if not self.uses_poses:
+            wanted = set()
+        for j in set(self._alive_subs) - wanted:
+            self.destroy_subscription(self._alive_subs.pop(j))
+            self.controller.liveness.forget(j)
+        for j in sorted(wanted - set(self._alive_subs)):
+            self._alive_subs[j] = self.create_subscription(
+                Vector3Stamped,
+                names.robot_topic(j, names.AES_FORCE),
+                lambda msg, j=j: self.controller.heard_force(j, stamp_to_ns(msg.header.stamp)),
+                COMMAND,
+            )
+
     # --- inputs -----------------------------------------------------------------------
 
     def poses_input(
         self, stamp_ns: int, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
     ) -> RobotInput | None:
         """The control law's inputs for one decoded ``/swarm/poses`` (None: no command)."""
+        if self._local_version != self._inputs.version:
+            self._sync_liveness()
         return self.controller.poses_input(stamp_ns, positions, headings, centroid)
 
     def on_odom(self, data: bytes) -> None:
@@ -313,6 +333,8 @@ class RobotNode(Node):
         except BadMessageError as exc:
             self._warn(f"dropped odom: {exc}")
             return
+        if self._local_version != self._inputs.version:
+            self._sync_liveness()
         job = self.controller.odom_input(sec * 1_000_000_000 + nanosec, x, y, yaw)
         self._inputs.odom_input(self, Time(sec=sec, nanosec=nanosec), job)
 

@@ -10,23 +10,17 @@ control law of all robots acting on a poses message is evaluated in one call
 one step are gathered and evaluated together too (:meth:`SwarmInputs.odom_input`).
 So both layouts take the same path.
 
-It also carries the robots' liveness: after acting on a poses message it publishes
-the process's heartbeat on ``/swarm/heartbeat`` (:func:`aes_ros.ros.diagnostics.heartbeat`),
-and it fills :attr:`heard`, the stamp at which every robot of the other processes
-was last heard from, from theirs; every robot of this process judges its
-neighbours by that one table.
+It also knows which robots run in this process, so that a robot listens for the
+liveness of its other neighbours only (:attr:`version` changes with that set).
 """
 
 from __future__ import annotations
 
-import os
-import socket
 import time
 from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -37,9 +31,8 @@ from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
-from aes_ros.ros.diagnostics import heartbeat, heartbeat_robots, parse_ids
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import HEARTBEAT, LATCHED, SENSOR
+from aes_ros.ros.qos import LATCHED, SENSOR
 
 if TYPE_CHECKING:
     from robot_node.node import RobotNode
@@ -47,8 +40,6 @@ if TYPE_CHECKING:
 #: Wall seconds an odometry batch waits for its last robots (the bridge publishes a
 #: step's odometry within a millisecond or two).
 ODOM_WAIT = 0.004
-#: Heartbeat id lists remembered parsed (one per process, unless ids change).
-_PARSED_MEMORY = 64
 
 
 class SwarmInputs:
@@ -57,8 +48,8 @@ class SwarmInputs:
     def __init__(self, node: Node) -> None:
         self.node = node
         self.robots: list[RobotNode] = []
-        #: Stamp [ns] at which each robot of another process was last heard from.
-        self.heard: dict[int, int] = {}
+        #: Changes whenever a robot joins, leaves or changes its id or source.
+        self.version = 0
         self._warn = ThrottledWarnings(node.get_logger())
         self._poses_sub = None
         self._odom_robots = 0
@@ -72,11 +63,6 @@ class SwarmInputs:
             PointStamped, names.ROTATION_CENTER, self.on_rotation_center, LATCHED
         )
         node.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
-        self._hardware_id = f"{socket.gethostname()}:{os.getpid()}"
-        self._heartbeat = heartbeat(node.get_fully_qualified_name(), self._hardware_id, [])
-        self._heartbeat_pub = node.create_publisher(DiagnosticArray, names.HEARTBEAT, HEARTBEAT)
-        self._parsed: dict[str, list[int]] = {}
-        node.create_subscription(DiagnosticArray, names.HEARTBEAT, self.on_heartbeat, HEARTBEAT)
 
     # --- the robots of this process -------------------------------------------------
 
@@ -90,13 +76,10 @@ class SwarmInputs:
             self.changed()
 
     def changed(self) -> None:
-        """A robot changed its id or neighbour source: re-check whether ``/swarm/poses``
-        is needed at all, and which robots the heartbeat names."""
-        acting = [robot.robot_id for robot in self.robots if robot.uses_poses]
-        self._heartbeat = heartbeat(self.node.get_fully_qualified_name(), self._hardware_id, acting)
-        for robot_id in acting:  # run here now: never judged by another's heartbeat
-            self.heard.pop(robot_id, None)
-        wanted = bool(acting)
+        """A robot changed its id or neighbour source: re-check liveness subscriptions
+        (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed at all."""
+        self.version += 1
+        wanted = any(robot.uses_poses for robot in self.robots)
         if wanted and self._poses_sub is None:
             self._poses_sub = self.node.create_subscription(
                 PoseArray, names.POSES, self.on_poses, SENSOR, raw=True
@@ -109,6 +92,10 @@ class SwarmInputs:
             steady = Clock(clock_type=ClockType.STEADY_TIME)
             self._odom_timer = self.node.create_timer(ODOM_WAIT, self._flush_late, clock=steady)
         self._odom_pending = {r: v for r, v in self._odom_pending.items() if r in self.robots}
+
+    def local_ids(self) -> set[int]:
+        """Robot ids run by this process."""
+        return {robot.robot_id for robot in self.robots}
 
     # --- inputs -----------------------------------------------------------------------
 
@@ -133,27 +120,6 @@ class SwarmInputs:
                 inputs.append(job)
         for robot, result in zip(acting, evaluate_robots(inputs), strict=True):
             robot.publish_command(stamp, result)
-        if acting:
-            self._heartbeat.header.stamp = stamp
-            self._heartbeat_pub.publish(self._heartbeat)
-
-    def on_heartbeat(self, msg: DiagnosticArray) -> None:
-        """Another process's robots acted at the message's stamp: they are alive."""
-        stamp_ns = stamp_to_ns(msg.header.stamp)
-        for hardware_id, text in heartbeat_robots(msg):
-            if hardware_id == self._hardware_id:
-                continue  # this process's own robots are alive while it runs
-            ids = self._parsed.get(text)
-            if ids is None:
-                try:
-                    ids = parse_ids(text)
-                except ValueError as exc:
-                    self._warn(f"dropped {names.HEARTBEAT}: {exc}")
-                    continue
-                if len(self._parsed) >= _PARSED_MEMORY:
-                    self._parsed.clear()
-                self._parsed[text] = ids
-            self.heard.update(dict.fromkeys(ids, stamp_ns))
 
     def odom_input(self, robot: RobotNode, stamp: Time, job: RobotInput) -> None:
         """An ``odom``-source robot's input for its own odometry at ``stamp``.

@@ -56,9 +56,6 @@ MARKERS = "/swarm/markers"
 #: diagnostic_msgs/DiagnosticArray: the bridge's view of which robots are silent
 #: (:mod:`aes_ros.ros.diagnostics`).
 DIAGNOSTICS = "/diagnostics"
-#: diagnostic_msgs/DiagnosticArray: every robot process's robots that acted on the
-#: poses of its stamp, once per step (:func:`aes_ros.ros.diagnostics.heartbeat`).
-HEARTBEAT = "/swarm/heartbeat"
 
 #: The recorder's progress: the stamp of the latest ``/swarm/poses`` it has written
 #: (rosgraph_msgs/Clock). A lockstep bridge with ``wait_for_recorder`` waits for it.

@@ -89,15 +89,6 @@ STREAM_WRITER = QoSProfile(
 )
 
 
-#: /swarm/heartbeat: best-effort (a lost one is covered by the next step's), and
-#: deep enough that one reader keeps the heartbeats of many processes between takes.
-HEARTBEAT = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=32,
-    reliability=ReliabilityPolicy.BEST_EFFORT,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
 #: /swarm/markers (dashboard → RViz2, Foxglove, a bag): reliable (RViz2's default)
 #: and only the newest; a viewer that lags skips to the latest picture.
 DISPLAY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)

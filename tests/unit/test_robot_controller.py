@@ -91,7 +91,7 @@ def test_dt_follows_the_stamps_and_a_clock_going_back_forgets_old_liveness() -> 
     ctl, log = controller()
     assert poses(ctl, 1.0).dt == 0.05  # the default until two stamps are known
     assert poses(ctl, 1.1).dt == pytest.approx(0.1)
-    ctl.heard(2, round(1.1 * S))
+    ctl.heard_force(2, round(1.1 * S))
     assert poses(ctl, 3.0).neighbor_positions.tolist() == [XY[0].tolist()]  # 2 silent: out
     assert any("neighbour 2 silent" in w for w in log.warnings)
     # A restarted simulator: the clock starts again; neighbour 2's stamp is forgotten.
@@ -100,7 +100,7 @@ def test_dt_follows_the_stamps_and_a_clock_going_back_forgets_old_liveness() -> 
 
 def test_a_silent_neighbour_is_left_out_and_taken_back_when_heard_again() -> None:
     ctl, log = controller()
-    ctl.heard(0, 1 * S)
+    ctl.heard_force(0, 1 * S)
     assert len(poses(ctl, 1.5).neighbor_positions) == 2  # within the 1 s timeout
     job = poses(ctl, 2.5)
     np.testing.assert_array_equal(job.neighbor_positions, XY[[2]])
@@ -108,7 +108,7 @@ def test_a_silent_neighbour_is_left_out_and_taken_back_when_heard_again() -> Non
     assert sum("silent" in w for w in log.warnings) == 1
     poses(ctl, 2.6)
     assert sum("silent" in w for w in log.warnings) == 1  # said once, not every step
-    ctl.heard(0, round(2.6 * S))
+    ctl.heard_force(0, round(2.6 * S))
     assert len(poses(ctl, 2.7).neighbor_positions) == 2
     assert log.notes == ["neighbour 0 heard again: back in the sum"]
 
