@@ -34,17 +34,16 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist, Vector3Stamped
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
-from aes_ros.ros.cdr import Vector3StampedEncoder, decode_odometry, encode_twist
-from aes_ros.ros.conversions import BadMessageError, stamp_to_ns
+from aes_ros.ros.cdr import Vector3StampedEncoder, encode_twist
+from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.node_tools import PublishCounter, ThrottledWarnings
-from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, SENSOR
+from aes_ros.ros.qos import COMMAND, COMMAND_KEPT
 from aes_ros.ros.spin import run_node_process
 from aes_ros.scenario import Scenario
 from robot_node.controller import (
@@ -100,7 +99,8 @@ class RobotNode(Node):
     Topics: ``/swarm/poses`` (``poses`` source), ``/swarm/desired_velocity``,
     ``/swarm/rotation_center``, ``/swarm/enabled`` through ``inputs`` (the
     process's :class:`SwarmInputs`; a robot alone makes its own); ``odom`` and
-    ``/mona_<j>/odom`` of every neighbour j (``odom`` source); ``/mona_<j>/aes_force``
+    ``/mona_<j>/odom`` of every neighbour j (``odom`` source; each topic subscribed once
+    per process, through ``inputs``); ``/mona_<j>/aes_force``
     of every neighbour j run by another process (liveness). Publishes ``cmd_vel``
     and ``aes_force``.
     """
@@ -129,8 +129,7 @@ class RobotNode(Node):
         self.controller = RobotController(
             self._settings(), scen.command, self._warn, self.get_logger().info
         )
-        self._odom_sub = None
-        self._neighbor_subs: dict[int, Any] = {}
+        self._odom_neighbors: set[int] = set()
         self._alive_subs: dict[int, Any] = {}
         alone = inputs is None
         self._inputs = SwarmInputs(self) if alone else inputs
@@ -272,27 +271,19 @@ class RobotNode(Node):
         self._inputs.changed()
 
     def _sync_subscriptions(self) -> None:
-        """Subscribe to the odometry the neighbour source needs, and to nothing else."""
-        want_odom = not self.uses_poses
-        if want_odom and self._odom_sub is None:
-            self._odom_sub = self.create_subscription(
-                Odometry, names.ODOM, self.on_odom, SENSOR, raw=True
-            )
-        elif not want_odom and self._odom_sub is not None:
-            self.destroy_subscription(self._odom_sub)
-            self._odom_sub = None
-        wanted = set(self.controller.neighbors.tolist()) if want_odom else set()
-        for j in set(self._neighbor_subs) - wanted:
-            self.destroy_subscription(self._neighbor_subs.pop(j))
+        """Receive the odometry the neighbour source needs (own and neighbours'), and
+        nothing else. The process subscribes to each topic once
+        (:meth:`SwarmInputs.listen_odom`): a robot's odometry is read by itself and by
+        its neighbours, mostly robots of the same process."""
+        topics: dict[str, int | None] = {}
+        if not self.uses_poses:
+            for j in self.controller.neighbors.tolist():
+                topics[names.robot_topic(j, names.ODOM)] = j
+            topics[self.resolve_topic_name(names.ODOM)] = None  # own
+        for j in self._odom_neighbors - set(topics.values()):
             self.controller.forget_neighbor(j)
-        for j in sorted(wanted - set(self._neighbor_subs)):
-            self._neighbor_subs[j] = self.create_subscription(
-                Odometry,
-                names.robot_topic(j, names.ODOM),
-                lambda data, j=j: self.on_neighbor_odom(j, data),
-                SENSOR,
-                raw=True,
-            )
+        self._odom_neighbors = {j for j in topics.values() if j is not None}
+        self._inputs.listen_odom(self, topics)
 
     def _sync_liveness(self) -> None:
         """``poses`` source: listen to the ``aes_force`` of every neighbour not run by
@@ -325,27 +316,13 @@ class RobotNode(Node):
             self._sync_liveness()
         return self.controller.poses_input(stamp_ns, positions, headings, centroid)
 
-    def on_odom(self, data: bytes) -> None:
-        """Own odometry (``odom`` source, raw CDR): act with the neighbours heard from
-        recently."""
-        try:
-            sec, nanosec, x, y, yaw = decode_odometry(data)
-        except BadMessageError as exc:
-            self._warn(f"dropped odom: {exc}")
-            return
+    def on_odom(self, sec: int, nanosec: int, x: float, y: float, yaw: float) -> None:
+        """Own odometry (``odom`` source, decoded by :class:`SwarmInputs`): act with the
+        neighbours heard from recently."""
         if self._local_version != self._inputs.version:
             self._sync_liveness()
         job = self.controller.odom_input(sec * 1_000_000_000 + nanosec, x, y, yaw)
         self._inputs.odom_input(self, Time(sec=sec, nanosec=nanosec), job)
-
-    def on_neighbor_odom(self, j: int, data: bytes) -> None:
-        """A neighbour's odometry (raw CDR): its position at its stamp."""
-        try:
-            sec, nanosec, x, y, _ = decode_odometry(data)
-        except BadMessageError as exc:
-            self._warn(f"dropped {names.robot_topic(j, names.ODOM)}: {exc}")
-            return
-        self.controller.neighbor_odom(j, sec * 1_000_000_000 + nanosec, x, y)
 
     # --- output -----------------------------------------------------------------------
 

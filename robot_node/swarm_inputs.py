@@ -17,11 +17,12 @@ liveness of its other neighbours only (:attr:`version` changes with that set).
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
+from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
@@ -29,7 +30,7 @@ from std_msgs.msg import Bool
 from aes_ros.model import RobotInput, evaluate_robots
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
-from aes_ros.ros.cdr import decode_pose_array
+from aes_ros.ros.cdr import decode_odometry, decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, SENSOR
@@ -56,6 +57,9 @@ class SwarmInputs:
         self._odom_pending: dict[RobotNode, tuple[Time, RobotInput]] = {}
         self._odom_since = 0.0
         self._odom_timer = None
+        self._odom_subs: dict[str, Any] = {}
+        #: topic -> (robot, neighbour id, or None: the robot's own odometry)
+        self._odom_listeners: dict[str, list[tuple[RobotNode, int | None]]] = {}
         node.create_subscription(
             TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
         )
@@ -71,6 +75,7 @@ class SwarmInputs:
         self.changed()
 
     def remove(self, robot: RobotNode) -> None:
+        self.listen_odom(robot, {})
         if robot in self.robots:
             self.robots.remove(robot)
             self.changed()
@@ -97,7 +102,48 @@ class SwarmInputs:
         """Robot ids run by this process."""
         return {robot.robot_id for robot in self.robots}
 
+    def listen_odom(self, robot: RobotNode, topics: dict[str, int | None]) -> None:
+        """From now on hand ``robot`` the odometry of ``topics`` (topic -> the neighbour
+        id it belongs to, or None for the robot's own), and no other.
+
+        Each topic is subscribed to once per process and decoded once, however many
+        of its robots read it: in the ``odom`` source a robot's odometry is read by
+        itself and by each of its neighbours, and one subscription per reader was
+        most of a host's messages."""
+        for listeners in self._odom_listeners.values():
+            listeners[:] = [entry for entry in listeners if entry[0] is not robot]
+        for topic, neighbor in topics.items():
+            self._odom_listeners.setdefault(topic, []).append((robot, neighbor))
+        for topic in [t for t, listeners in self._odom_listeners.items() if not listeners]:
+            del self._odom_listeners[topic]
+            self.node.destroy_subscription(self._odom_subs.pop(topic))
+        for topic in sorted(set(self._odom_listeners) - set(self._odom_subs)):
+            self._odom_subs[topic] = self.node.create_subscription(
+                Odometry,
+                topic,
+                lambda data, topic=topic: self.on_odom(topic, data),
+                SENSOR,
+                raw=True,
+            )
+
     # --- inputs -----------------------------------------------------------------------
+
+    def on_odom(self, topic: str, data: bytes) -> None:
+        """One robot's odometry (raw CDR), decoded once for every robot reading it."""
+        try:
+            sec, nanosec, x, y, yaw = decode_odometry(data)
+        except BadMessageError as exc:
+            self._warn(f"dropped {topic}: {exc}")
+            return
+        stamp_ns = sec * 1_000_000_000 + nanosec
+        own = []
+        for robot, neighbor in self._odom_listeners.get(topic, ()):
+            if neighbor is None:
+                own.append(robot)
+            else:
+                robot.controller.neighbor_odom(neighbor, stamp_ns, x, y)
+        for robot in own:
+            robot.on_odom(sec, nanosec, x, y, yaw)
 
     def on_poses(self, data: bytes) -> None:
         """Decode ``/swarm/poses`` once; every robot using it acts on it."""

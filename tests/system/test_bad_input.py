@@ -223,7 +223,7 @@ def check_alive_finite_and_warned_once_per_kind(robot: Robot1, proc) -> None:
     assert proc.poll() is None
     assert all(math.isfinite(c.linear.x) and math.isfinite(c.angular.z) for c in robot.cmds)
     assert all(math.isfinite(f.vector.x) and math.isfinite(f.vector.y) for f in robot.forces)
-    kinds = ["/swarm/poses", "/swarm/desired_velocity", "/swarm/rotation_center", "odom"]
+    kinds = ["/swarm/poses", "/swarm/desired_velocity", "/swarm/rotation_center", "/mona_1/odom"]
     for kind in [f"dropped {k}" for k in [*kinds, "/mona_0/odom"]]:
         assert 1 <= warnings_in(robot.log, kind) <= 3, kind
     assert "Traceback" not in robot.log.read_text()
