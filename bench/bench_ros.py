@@ -17,7 +17,7 @@ warm-up, then measures over a steady window of wall time:
 Usage::
 
     python bench/bench_ros.py                       # the standard grid (~15 min)
-    python bench/bench_ros.py --robots 100 --rates 50 --sources poses --layouts per-core
+    python bench/bench_ros.py --robots 100 --rates 50 --sources poses --layouts auto,per-core
     python bench/bench_ros.py --quick               # smoke version for CI (~30 s)
     python bench/bench_ros.py --physics             # only the bridge physics line
 
@@ -66,15 +66,17 @@ from bench_sim import direct_port  # a sibling script, not a package
 CLK_TCK = os.sysconf("SC_CLK_TCK")
 #: The standard grid: (robots, rate [Hz], source, layout).
 STANDARD_GRID = [
-    *[(n, r, "poses", "per-core") for n in (16, 100, 400, 1000) for r in (10, 20, 50)],
-    *[(n, r, "odom", "per-core") for n in (16, 100) for r in (10, 20, 50)],
-    (400, 10, "odom", "per-core"),
+    *[(n, r, "poses", "auto") for n in (16, 100, 400, 1000) for r in (10, 20, 50)],
+    *[(n, r, "odom", "auto") for n in (16, 100) for r in (10, 20, 50)],
+    (400, 10, "odom", "auto"),
+    (100, 50, "poses", "per-core"),
+    (100, 50, "odom", "per-core"),
     (16, 20, "poses", "single"),
     (100, 20, "poses", "single"),
     (16, 20, "poses", "per-robot"),
     (16, 20, "odom", "per-robot"),
 ]
-QUICK_GRID = [(16, 20, "poses", "per-core")]
+QUICK_GRID = [(16, 20, "poses", "auto")]
 
 
 @dataclass
@@ -163,12 +165,14 @@ def measure(
     robots: int, rate: float, source: str, layout: str, warmup: float, window: float
 ) -> Row:
     from aes_ros.ros.launch import LaunchConfig, Launcher
+    from aes_ros.ros.launch.plan import resolved_layout
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     config = LaunchConfig(
         sc, label="bench", layout=layout, neighbor_source=source, mode="kinematic",
         duration=0.0, start_timeout=600.0,
     )  # fmt: skip
+    layout = resolved_layout(config)  # the table shows what `auto` chose
     launcher = Launcher(config, say=lambda _text: None)
     t0 = time.monotonic()
     try:
@@ -361,7 +365,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--robots", type=_ints, help="robot counts, e.g. 16,100")
     parser.add_argument("--rates", type=_ints, help="control rates [Hz], e.g. 10,20,50")
     parser.add_argument("--sources", default="poses", help="poses,odom")
-    parser.add_argument("--layouts", default="per-core", help="single,per-core,per-robot")
+    parser.add_argument(
+        "--layouts", default="auto", help="auto,single,per-core,per-robot (auto: as launch)"
+    )
     parser.add_argument("--quick", action="store_true", help="one small configuration (CI smoke)")
     parser.add_argument("--physics", action="store_true", help="only the bridge physics line")
     parser.add_argument(
@@ -410,8 +416,8 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         print("RESULT failed: no configuration measured")
         return 1
-    reference = (100, 50, "poses", "per-core")
-    key = next((r for r in rows if (r.robots, r.rate, r.source, r.layout) == reference), rows[0])
+    reference = (100, 50, "poses")
+    key = next((r for r in rows if (r.robots, r.rate, r.source) == reference), rows[0])
     ratios = ""
     if not args.no_baseline:
         # the same robots and rate: this design with odometry too, and the naive one

@@ -27,8 +27,9 @@ from aes_ros.ros.launch.plan import ON_FAILURE
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     p.add_argument(
-        "--layout", choices=LAYOUTS, default="per-core",
-        help="robot processes: one for all, one per core (default), or one per robot",
+        "--layout", choices=LAYOUTS, default="auto",
+        help="robot processes: auto (default: one while it carries the load, else one "
+        "per core), one for all, one per core, or one per robot",
     )  # fmt: skip
     p.add_argument(
         "--neighbor-source", choices=NEIGHBOR_SOURCES, default="poses",

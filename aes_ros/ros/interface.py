@@ -86,7 +86,7 @@ NEIGHBOR_SOURCES = ("poses", "odom")
 #: How the bridge moves the bodies.
 MODES = ("kinematic", "dynamic")
 #: How ``aes-swarm launch`` spreads the robots over processes.
-LAYOUTS = ("single", "per-core", "per-robot")
+LAYOUTS = ("auto", "single", "per-core", "per-robot")
 #: The supervisor's rotation centre: the live centroid or a fixed point.
 CENTER_MODES = ("centroid", "fixed")
 

@@ -30,6 +30,24 @@ def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
     assert len(single) == 3 and not any("robot_ids" in a for a in single[2][1])
 
 
+def test_auto_layout_uses_one_host_while_it_carries_the_load(tmp_path) -> None:
+    """auto: one robot host up to 200 robots and 5000 robot-steps per second (the
+    measured cheaper layout on two cores), one per core above either."""
+    from aes_ros.ros.launch.plan import resolved_layout
+
+    def layout(robots: int, hz: float) -> str:
+        sc = scenario.load("combined", {"dt": 1.0 / hz}).with_robots(robots)
+        return resolved_layout(LaunchConfig(sc))
+
+    assert layout(100, 50) == "single" and layout(16, 20) == "single"
+    assert layout(101, 50) == "per-core"  # 5050 robot-steps per second
+    assert layout(400, 10) == "per-core"  # too many robots for one process's start
+    sc = scenario.load("linear").with_robots(6)
+    assert resolved_layout(LaunchConfig(sc, layout="per-core")) == "per-core"
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml")
+    assert [name for name, _ in node_commands(LaunchConfig(sc), *files)][2:] == ["robot_host_0"]
+
+
 def test_dashboard_runs_on_loopback_with_sim_time(tmp_path) -> None:
     sc = scenario.load("linear").with_robots(4)
     name, argv = dashboard_command(LaunchConfig(sc, dashboard=8091), tmp_path / "s.yaml")

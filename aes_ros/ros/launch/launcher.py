@@ -71,6 +71,7 @@ from aes_ros.ros.launch.plan import (
     dashboard_command,
     node_commands,
     recorder_command,
+    resolved_layout,
     write_robot_params,
     write_scenario,
 )
@@ -249,7 +250,7 @@ class Launcher:
         )
         hosts = len(robot_specs)
         self.say(
-            f"launch: {n} robots, layout {cfg.layout} ({hosts} robot process"
+            f"launch: {n} robots, layout {resolved_layout(cfg)} ({hosts} robot process"
             f"{'es' if hosts != 1 else ''}), neighbours from {cfg.neighbor_source}, "
             f"{cfg.mode} mode{', lockstep' if cfg.lockstep else ''}, "
             f"real-time factor {cfg.real_time_factor:g}, on failure {cfg.on_failure}; "

@@ -57,7 +57,7 @@ class LaunchConfig:
 
     scenario: Scenario
     label: str = "launch"
-    layout: str = "per-core"
+    layout: str = "auto"
     neighbor_source: str = "poses"
     mode: str = "kinematic"
     duration: float | None = None
@@ -264,6 +264,32 @@ def supervisor_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec
     return ProcessSpec(names.SUPERVISOR_NODE, ["aes-supervisor", *ros_args(params)])
 
 
+#: ``auto`` runs all robots in one host process up to this many robots ...
+AUTO_SINGLE_ROBOTS = 200
+#: ... and robot-steps per second (robots × control rate).
+AUTO_SINGLE_STEPS = 5000.0
+
+
+def resolved_layout(config: LaunchConfig) -> str:
+    """The layout ``auto`` stands for: ``single`` while one process carries the robots
+    (≤ AUTO_SINGLE_ROBOTS robots and ≤ AUTO_SINGLE_STEPS robot-steps per second),
+    else ``per-core``; any other layout as it is.
+
+    Why: with two cores, the bridge and the supervisor already use part of the
+    second one, and every robot process reads each swarm message and pays its own
+    executor. 100 robots at 50 Hz: one host 203–217 µs of CPU per robot-step and
+    49.9–50 steps answered per second, two hosts 287–299 µs and 49.1–49.6
+    (bench/bench_ros.py, docs/performance.md). One host's Python runs on one core,
+    hence the limits; a host also creates its robot nodes one after the other.
+    """
+    if config.layout != "auto":
+        return config.layout
+    steps = config.num_robots / config.scenario.dt
+    if config.num_robots <= AUTO_SINGLE_ROBOTS and steps <= AUTO_SINGLE_STEPS:
+        return "single"
+    return "per-core"
+
+
 def robot_commands(
     config: LaunchConfig, scenario_file: Path, robots_file: Path
 ) -> list[ProcessSpec]:
@@ -271,7 +297,8 @@ def robot_commands(
     (``per-robot``) or ``aes-robot-host`` processes (``single``: one; ``per-core``:
     one per core, robots split evenly, hosts named ``robot_host_<h>``)."""
     n = config.num_robots
-    if config.layout == "per-robot":
+    layout = resolved_layout(config)
+    if layout == "per-robot":
         files = ["--params-file", str(robots_file)]
         return [
             ProcessSpec(
@@ -280,7 +307,7 @@ def robot_commands(
             )
             for i in range(n)
         ]
-    parts = 1 if config.layout == "single" else (config.cores or os.cpu_count() or 1)
+    parts = 1 if layout == "single" else (config.cores or os.cpu_count() or 1)
     blocks = split_robots(n, parts)
     out = []
     for h, ids in enumerate(blocks):
