@@ -61,13 +61,15 @@ def spin(nodes: list[Node], executor: Executor | None = None) -> str:
     """
     received: list[str] = []
     stop = threading.Event()
-    stopped = Future()  # ends a spin slice at once when a signal arrives during a callback
+    # The current slice's future: a signal during a callback ends the slice at once.
+    # One per slice: rclpy's own executors add a done-callback per call.
+    slice_done = [Future()]
 
     def on_signal(signum: int, _frame: object) -> None:
         received.append(signal.Signals(signum).name)
         stop.set()
-        if not stopped.done():
-            stopped.set_result(received[0])
+        if not slice_done[0].done():
+            slice_done[0].set_result(received[0])
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     executor = EventsExecutor() if executor is None else executor
@@ -77,7 +79,8 @@ def spin(nodes: list[Node], executor: Executor | None = None) -> str:
         while not stop.is_set() and rclpy.ok():
             # A slice handles every event that comes within SPIN_SLICE in C++;
             # spin_once returned to Python after each one (18 % more CPU per message).
-            executor.spin_until_future_complete(stopped, timeout_sec=SPIN_SLICE)
+            slice_done[0] = Future()
+            executor.spin_until_future_complete(slice_done[0], timeout_sec=SPIN_SLICE)
     finally:
         executor.shutdown()
         for sig, handler in previous.items():
