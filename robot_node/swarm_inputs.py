@@ -3,7 +3,8 @@
 Every robot process, a lone ``aes-robot-node`` as much as an ``aes-robot-host``
 with hundreds of robots, reads the swarm's topics through one :class:`SwarmInputs`:
 ``/swarm/poses`` (raw, decoded with numpy: :mod:`aes_ros.ros.cdr`),
-``/swarm/desired_velocity``, ``/swarm/rotation_center`` and ``/swarm/enabled``.
+``/swarm/desired_velocity``, ``/swarm/rotation_center`` and ``/swarm/enabled``, and
+in the ``odom`` source each ``/mona_<j>/odom`` its robots read (:meth:`listen_odom`).
 Each message is checked and converted once and handed to every robot, and the
 control law of all robots acting on a poses message is evaluated in one call
 (:func:`aes_ros.model.evaluate_robots`); in the ``odom`` source the robots' inputs of
