@@ -37,6 +37,24 @@ def _align(offset: int, size: int) -> int:
     return (offset + size - 1) // size * size
 
 
+def _byte_order(data: bytes, size: int, what: str) -> str:
+    """The struct byte order ("<" or ">") of a raw message of at least ``size`` bytes
+    (encapsulation header included); BadMessageError if it is shorter or not plain CDR."""
+    if len(data) < size or data[0] != 0 or data[1] not in (0, 1):
+        raise BadMessageError(f"{what}: not a CDR message")
+    return "<" if data[1] == 1 else ">"
+
+
+def _buffer_with_frame(size: int, frame: bytes) -> bytearray:
+    """A zeroed message buffer of ``size`` bytes starting with the encapsulation header
+    and a ``std_msgs/Header`` whose frame_id is ``frame`` (NUL included; stamp left 0)."""
+    buf = bytearray(size)
+    buf[:_HEADER] = CDR_LE
+    struct.pack_into("<I", buf, _HEADER + 8, len(frame))
+    buf[_HEADER + 12 : _HEADER + 12 + len(frame)] = frame
+    return buf
+
+
 class PoseArrayEncoder:
     """Serialised PoseArrays of ``n`` planar poses in one reused buffer.
 
@@ -48,10 +66,7 @@ class PoseArrayEncoder:
         name = frame_id.encode() + b"\0"
         count_at = _align(12 + len(name), 4)
         poses_at = _align(count_at + 4, 8) if n else count_at + 4
-        self._buf = bytearray(_HEADER + poses_at + 8 * POSE_DOUBLES * n)
-        self._buf[:_HEADER] = CDR_LE
-        struct.pack_into("<I", self._buf, _HEADER + 8, len(name))
-        self._buf[_HEADER + 12 : _HEADER + 12 + len(name)] = name
+        self._buf = _buffer_with_frame(_HEADER + poses_at + 8 * POSE_DOUBLES * n, name)
         struct.pack_into("<I", self._buf, _HEADER + count_at, n)
         #: (n, 7) view into the buffer: x, y, z, qx, qy, qz, qw of every pose.
         self.poses = np.frombuffer(
@@ -86,10 +101,7 @@ class OdometryEncoder:
         child_at = _align(12 + len(frame), 4)
         self._pose = _align(child_at + 4 + len(child), 8)
         self._twist = self._pose + 8 * (POSE_DOUBLES + 36)
-        self._buf = bytearray(_HEADER + self._twist + 8 * (6 + 36))
-        self._buf[:_HEADER] = CDR_LE
-        struct.pack_into("<I", self._buf, _HEADER + 8, len(frame))
-        self._buf[_HEADER + 12 : _HEADER + 12 + len(frame)] = frame
+        self._buf = _buffer_with_frame(_HEADER + self._twist + 8 * (6 + 36), frame)
         struct.pack_into("<I", self._buf, _HEADER + child_at, len(child))
         start = _HEADER + child_at + 4
         self._buf[start : start + len(child)] = child
@@ -136,9 +148,7 @@ def decode_twist(data: bytes) -> tuple[float, float]:
     """(linear.x [m/s], angular.z [rad/s]) of a raw ``geometry_msgs/Twist``; the other
     components are not looked at. BadMessageError if it is not a Twist; the values
     are not checked (the caller decides what a non-finite command means)."""
-    if len(data) < _TWIST.size or data[0] != 0 or data[1] not in (0, 1):
-        raise BadMessageError("Twist: not a CDR message of 6 float64")
-    order = "<" if data[1] == 1 else ">"
+    order = _byte_order(data, _TWIST.size, "Twist")
     forward, _, _, _, _, turn = struct.unpack_from(order + "6d", data, _HEADER)
     return forward, turn
 
@@ -152,10 +162,7 @@ class Vector3StampedEncoder:
     def __init__(self, frame_id: str) -> None:
         frame = frame_id.encode() + b"\0"
         self._vector = _align(12 + len(frame), 8)
-        self._buf = bytearray(_HEADER + self._vector + 8 * 3)
-        self._buf[:_HEADER] = CDR_LE
-        struct.pack_into("<I", self._buf, _HEADER + 8, len(frame))
-        self._buf[_HEADER + 12 : _HEADER + 12 + len(frame)] = frame
+        self._buf = _buffer_with_frame(_HEADER + self._vector + 8 * 3, frame)
 
     def encode(self, sec: int, nanosec: int, x: float, y: float) -> bytes:
         """The message stamped (sec, nanosec) with vector (x, y, 0)."""
@@ -167,17 +174,14 @@ class Vector3StampedEncoder:
 def decode_stamp(data: bytes) -> tuple[int, int]:
     """(sec, nanosec) of a raw message that starts with a ``std_msgs/Header`` (its stamp
     is the first field), e.g. ``/swarm/poses``; BadMessageError if too short."""
-    if len(data) < _HEADER + 8 or data[0] != 0 or data[1] not in (0, 1):
-        raise BadMessageError("not a CDR message with a header")
-    return struct.unpack_from("<iI" if data[1] == 1 else ">iI", data, _HEADER)
+    order = _byte_order(data, _HEADER + 8, "message with a header")
+    return struct.unpack_from(order + "iI", data, _HEADER)
 
 
 def _header_and_count(data: bytes, what: str) -> tuple[str, int, int, int, int]:
     """Byte order, stamp (sec, nanosec) of the leading ``std_msgs/Header``, and the
     offset and value of the uint32 after it (a sequence's length, or a string's)."""
-    if len(data) < _HEADER + 12 or data[0] != 0 or data[1] not in (0, 1):
-        raise BadMessageError(f"{what}: not a CDR message")
-    order = "<" if data[1] == 1 else ">"
+    order = _byte_order(data, _HEADER + 12, what)
     sec, nanosec, frame_len = struct.unpack_from(order + "iII", data, _HEADER)
     at = _align(12 + frame_len, 4)
     if _HEADER + at + 4 > len(data):
