@@ -7,6 +7,8 @@ The one definition of that conversion, shared by the message conversions
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -18,6 +20,12 @@ def yaw_from_quaternion(q: np.ndarray) -> np.ndarray:
     """
     x, y, z, w = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
     return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def planar_yaw(x: float, y: float, z: float, w: float) -> float:
+    """:func:`yaw_from_quaternion` of one quaternion in plain floats: for a message per
+    robot per step, where numpy's per-call cost would dominate."""
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 
 def quaternion_from_yaw(yaw: np.ndarray) -> np.ndarray:

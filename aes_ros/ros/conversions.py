@@ -16,7 +16,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseArray, Quaternion, Twist
 from nav_msgs.msg import Odometry
 
-from aes_ros.frames import yaw_from_quaternion
+from aes_ros.frames import planar_yaw, yaw_from_quaternion
 
 #: Largest accepted |x|, |y| of a position [m]: far beyond any arena, and small
 #: enough that squared distances and spring forces stay finite in float64.
@@ -66,8 +66,7 @@ def planar_pose(
         raise BadMessageError("pose has a non-finite value")
     if abs(x) > MAX_COORDINATE or abs(y) > MAX_COORDINATE:
         raise BadMessageError(f"pose has a coordinate beyond ±{MAX_COORDINATE:g} m")
-    yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
-    return x, y, yaw
+    return x, y, planar_yaw(qx, qy, qz, qw)
 
 
 def poses_to_arrays(msg: PoseArray, expected: int | None = None) -> tuple[np.ndarray, np.ndarray]:

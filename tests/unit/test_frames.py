@@ -7,7 +7,7 @@ import pybullet as pb
 import pytest
 from geometry_msgs.msg import Quaternion
 
-from aes_ros.frames import quaternion_from_yaw, yaw_from_quaternion
+from aes_ros.frames import planar_yaw, quaternion_from_yaw, yaw_from_quaternion
 from aes_ros.ros.conversions import quaternion_to_yaw, yaw_to_quaternion
 
 
@@ -16,6 +16,7 @@ def test_yaw_round_trips_and_agrees_with_pybullet_and_the_messages(yaw: float) -
     q = quaternion_from_yaw(yaw)
     np.testing.assert_allclose(q, pb.getQuaternionFromEuler((0.0, 0.0, yaw)), atol=1e-12)
     assert yaw_from_quaternion(q) == pytest.approx(yaw, abs=1e-12)
+    assert planar_yaw(*q.tolist()) == pytest.approx(yaw, abs=1e-12)
     msg = yaw_to_quaternion(yaw)
     assert quaternion_to_yaw(msg) == pytest.approx(yaw, abs=1e-12)
     np.testing.assert_allclose([msg.x, msg.y, msg.z, msg.w], q, atol=1e-15)
@@ -28,4 +29,5 @@ def test_batched_shapes_and_roll_pitch_are_ignored() -> None:
     np.testing.assert_allclose(yaw_from_quaternion(q), yaw, atol=1e-12)
     tilted = pb.getQuaternionFromEuler((0.05, -0.04, 1.2))  # a robot on a slight slope
     assert yaw_from_quaternion(tilted) == pytest.approx(1.2, abs=1e-2)
+    assert planar_yaw(*tilted) == pytest.approx(float(yaw_from_quaternion(tilted)), abs=1e-15)
     assert quaternion_to_yaw(Quaternion(x=0.0, y=0.0, z=0.0, w=1.0)) == 0.0
