@@ -129,7 +129,6 @@ class RobotNode(Node):
         self.controller = RobotController(
             self._settings(), scen.command, self._warn, self.get_logger().info
         )
-        self._odom_neighbors: set[int] = set()
         self._alive_subs: dict[int, Any] = {}
         alone = inputs is None
         self._inputs = SwarmInputs(self) if alone else inputs
@@ -280,10 +279,9 @@ class RobotNode(Node):
             for j in self.controller.neighbors.tolist():
                 topics[names.robot_topic(j, names.ODOM)] = j
             topics[self.resolve_topic_name(names.ODOM)] = None  # own
-        for j in self._odom_neighbors - set(topics.values()):
+        before = self._inputs.listen_odom(self, topics)
+        for j in set(before.values()) - set(topics.values()) - {None}:
             self.controller.forget_neighbor(j)
-        self._odom_neighbors = {j for j in topics.values() if j is not None}
-        self._inputs.listen_odom(self, topics)
 
     def _sync_liveness(self) -> None:
         """``poses`` source: listen to the ``aes_force`` of every neighbour not run by

@@ -61,6 +61,8 @@ class SwarmInputs:
         self._odom_subs: dict[str, Any] = {}
         #: topic -> (robot, neighbour id, or None: the robot's own odometry)
         self._odom_listeners: dict[str, list[tuple[RobotNode, int | None]]] = {}
+        #: robot -> the topics it is handed (listen_odom's argument)
+        self._odom_topics: dict[RobotNode, dict[str, int | None]] = {}
         node.create_subscription(
             TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
         )
@@ -103,29 +105,36 @@ class SwarmInputs:
         """Robot ids run by this process."""
         return {robot.robot_id for robot in self.robots}
 
-    def listen_odom(self, robot: RobotNode, topics: dict[str, int | None]) -> None:
+    def listen_odom(self, robot: RobotNode, topics: dict[str, int | None]) -> dict[str, int | None]:
         """From now on hand ``robot`` the odometry of ``topics`` (topic -> the neighbour
-        id it belongs to, or None for the robot's own), and no other.
+        id it belongs to, or None for the robot's own), and no other; returns what it
+        was handed before.
 
         Each topic is subscribed to once per process and decoded once, however many
         of its robots read it: in the ``odom`` source a robot's odometry is read by
         itself and by each of its neighbours, and one subscription per reader was
         most of a host's messages."""
-        for listeners in self._odom_listeners.values():
+        before = self._odom_topics.pop(robot, {})
+        for topic in before:
+            listeners = self._odom_listeners[topic]
             listeners[:] = [entry for entry in listeners if entry[0] is not robot]
+        if topics:
+            self._odom_topics[robot] = dict(topics)
         for topic, neighbor in topics.items():
             self._odom_listeners.setdefault(topic, []).append((robot, neighbor))
-        for topic in [t for t, listeners in self._odom_listeners.items() if not listeners]:
-            del self._odom_listeners[topic]
-            self.node.destroy_subscription(self._odom_subs.pop(topic))
-        for topic in sorted(set(self._odom_listeners) - set(self._odom_subs)):
-            self._odom_subs[topic] = self.node.create_subscription(
-                Odometry,
-                topic,
-                lambda data, topic=topic: self.on_odom(topic, data),
-                SENSOR,
-                raw=True,
-            )
+            if topic not in self._odom_subs:
+                self._odom_subs[topic] = self.node.create_subscription(
+                    Odometry,
+                    topic,
+                    lambda data, topic=topic: self.on_odom(topic, data),
+                    SENSOR,
+                    raw=True,
+                )
+        for topic in before:  # kept while anyone still reads it
+            if not self._odom_listeners[topic]:
+                del self._odom_listeners[topic]
+                self.node.destroy_subscription(self._odom_subs.pop(topic))
+        return before
 
     # --- inputs -----------------------------------------------------------------------
 
