@@ -160,24 +160,23 @@ def draw_noise(
         out = (np.empty(shape), np.empty(shape), np.empty(shape))
     angles = rng.random(size=shape)
     rng.standard_normal(out=out[2])
-    return unit_noise(angles, out)
+    unit_noise(angles, out[0], out[1])
+    return out
 
 
-def unit_noise(uniforms: np.ndarray, out: Noise) -> Noise:
-    """Fill ``out``'s ξ̂_r components from ``uniforms`` in [0, 1) (consumed: scaled in
-    place to the angle); ``out[2]`` (ξ_θ) is left as it is. Returns ``out``.
+def unit_noise(uniforms: np.ndarray, xi_x: np.ndarray, xi_y: np.ndarray) -> None:
+    """Fill ξ̂_r's components ``xi_x``, ``xi_y`` from ``uniforms`` in [0, 1) (consumed:
+    scaled in place to the angle); all three of the same shape.
 
     Split from :func:`draw_noise` so that many generators' draws (one per robot
     of a process) are turned into unit vectors in one call, with the same result.
     """
-    xi_x, xi_y, _ = out
     angles = uniforms
     angles *= 2.0 * np.pi
     angles -= np.pi
     angles32 = angles.astype(np.float32)
     np.cos(angles32, out=xi_x, casting="unsafe")
     np.sin(angles32, out=xi_y, casting="unsafe")
-    return out
 
 
 def motion_commands(
@@ -412,8 +411,9 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
             uniforms.append(job.rng.random())
             noise[2][row] = job.rng.standard_normal()
     if noisy:
-        xi = unit_noise(np.array(uniforms), (np.empty(len(noisy)), np.empty(len(noisy)), None))
-        noise[0][noisy], noise[1][noisy] = xi[0], xi[1]
+        xi_x, xi_y = np.empty(len(noisy)), np.empty(len(noisy))
+        unit_noise(np.array(uniforms), xi_x, xi_y)
+        noise[0][noisy], noise[1][noisy] = xi_x, xi_y
     gains = Gains(**{name: gain_rows[:, col] for col, name in enumerate(GAIN_FIELDS)})
     u, turn_rate, forces = robot_commands(
         positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits
