@@ -4,14 +4,15 @@
 # Ctrl-C (or SIGTERM) stops all of them cleanly. (Started with `&` from another
 # script, bash ignores SIGINT for it: stop it with `kill -TERM` then.)
 #
-#   scripts/start_swarm.sh                     # 16 robots, combined setup, one host per core
+#   scripts/start_swarm.sh                     # 16 robots, combined setup, one robot host
 #   scripts/start_swarm.sh -s linear -n 36 -k 1
 #   scripts/start_swarm.sh -s my_scenario.yaml -x odom -m dynamic -g
 #
 # Options:
 #   -s SETUP   linear | rotation | combined (default) or a scenario YAML file
 #   -n N       number of robots (default 16; 0 = the scenario's formation)
-#   -k K       number of robot host processes (default: number of cores)
+#   -k K       number of robot host processes (default: as `aes-swarm launch`'s layout
+#              auto: one up to 200 robots and 5000 robot-steps/s, else one per core)
 #   -x SOURCE  neighbour source: poses (default) | odom
 #   -m MODE    kinematic (default) | dynamic
 #   -r X       real-time factor (default 1; 0 = as fast as possible)
@@ -24,7 +25,7 @@
 #   ros2 param set /supervisor rotation_rate 0.5
 set -euo pipefail
 
-SETUP=combined ROBOTS=16 HOSTS=$(nproc 2>/dev/null || echo 1) SOURCE=poses MODE=kinematic
+SETUP=combined ROBOTS=16 HOSTS=auto SOURCE=poses MODE=kinematic
 RTF=1.0 SEED=0 GUI=false
 while getopts "s:n:k:x:m:r:e:gh" opt; do
     case $opt in
@@ -42,7 +43,7 @@ while getopts "s:n:k:x:m:r:e:gh" opt; do
     esac
 done
 case $ROBOTS in ''|*[!0-9]*) echo "$0: -n: need a whole number, got '$ROBOTS'" >&2; exit 2 ;; esac
-case $HOSTS in ''|*[!0-9]*|0) echo "$0: -k: need a whole number >= 1, got '$HOSTS'" >&2; exit 2 ;; esac
+case $HOSTS in auto) ;; ''|*[!0-9]*|0) echo "$0: -k: need a whole number >= 1, got '$HOSTS'" >&2; exit 2 ;; esac
 case $SOURCE in poses|odom) ;; *) echo "$0: -x: poses or odom, got '$SOURCE'" >&2; exit 2 ;; esac
 case $MODE in kinematic|dynamic) ;; *) echo "$0: -m: kinematic or dynamic, got '$MODE'" >&2; exit 2 ;; esac
 case $RTF in *[!0-9.]*|'') echo "$0: -r: need a number >= 0, got '$RTF'" >&2; exit 2 ;; esac
@@ -71,6 +72,15 @@ print(len(scenario.load('$SETUP').nominal_positions()))" 2>/dev/null || true)
     NUM=0
 else
     NUM=$ROBOTS
+fi
+# The host count of launch's layout auto (aes_ros.ros.launch.plan.auto_layout).
+if [ "$HOSTS" = auto ]; then
+    LAYOUT=$("$BIN/python" -c "from aes_ros import scenario; \
+from aes_ros.ros.launch.plan import auto_layout; \
+print(auto_layout($ROBOTS, scenario.load('$SETUP').dt))" 2>/dev/null || true)
+    [ -n "$LAYOUT" ] || { echo "$0: cannot read scenario '$SETUP'" >&2; exit 2; }
+    HOSTS=1
+    [ "$LAYOUT" = single ] || HOSTS=$(nproc 2>/dev/null || echo 1)
 fi
 [ "$HOSTS" -le "$ROBOTS" ] || HOSTS=$ROBOTS
 

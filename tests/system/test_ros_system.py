@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from helpers.probe import Probe
-from helpers.ros_env import assert_no_orphans
+from helpers.ros_env import assert_no_orphans, processes_in_domain
 from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
 
@@ -336,6 +336,24 @@ def test_start_swarm_script_runs_and_stops_cleanly(spawn, ros_env, probe) -> Non
     probe.wait_sim(t0 + 3.0, timeout=60.0)
     moved = probe.motion(t0, probe.now)
     assert moved.min() > 1e-3, moved
+    os.killpg(script.pid, signal.SIGINT)
+    assert script.wait(30) == 0
+    assert_no_orphans(ros_env)
+
+
+def test_start_swarm_script_picks_the_launchers_host_count(spawn, ros_env, probe) -> None:
+    """Without -k the script runs as many robot hosts as `aes-swarm launch`'s layout
+    auto would: 16 robots at 20 Hz are one host, whatever the number of cores."""
+    n = 16
+    spawn.env = {**spawn.env, "PATH": f"{BIN}{os.pathsep}{ros_env.get('PATH', '')}"}
+    script = spawn.start(
+        "bash", str(REPO / "scripts" / "start_swarm.sh"), "-s", "combined", "-n", str(n),
+        name="start_swarm",
+    )  # fmt: skip
+    probe.sample_poses(n)
+    probe.wait_all_moving()  # every robot answers, so every host is up
+    hosts = [c for c in processes_in_domain(ros_env["ROS_DOMAIN_ID"]) if "aes-robot-host" in c]
+    assert len(hosts) == 1, hosts
     os.killpg(script.pid, signal.SIGINT)
     assert script.wait(30) == 0
     assert_no_orphans(ros_env)

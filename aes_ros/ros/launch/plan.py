@@ -284,10 +284,17 @@ def resolved_layout(config: LaunchConfig) -> str:
     """
     if config.layout != "auto":
         return config.layout
-    steps = config.num_robots / config.scenario.dt
-    if config.num_robots <= AUTO_SINGLE_ROBOTS and steps <= AUTO_SINGLE_STEPS:
-        return "single"
-    return "per-core"
+    return auto_layout(config.num_robots, config.scenario.dt)
+
+
+def auto_layout(num_robots: int, dt: float) -> str:
+    """``single`` or ``per-core``: what ``auto`` means for ``num_robots`` robots at a
+    control period of ``dt`` [s] (:func:`resolved_layout`; ``scripts/start_swarm.sh``
+    uses it for its default host count too)."""
+    steps = num_robots / dt
+    return (
+        "single" if num_robots <= AUTO_SINGLE_ROBOTS and steps <= AUTO_SINGLE_STEPS else "per-core"
+    )
 
 
 def robot_commands(
