@@ -1,0 +1,156 @@
+"""What bounds the start of a large swarm: creating ROS 2 nodes and their parameter services.
+
+Issue #13 asks 1000 robots moving within 15 s while ``ros2 param set /mona_<i>/aes_robot``
+works for every robot. ``ros2 param set`` of Jazzy waits until *all six* parameter
+services of the node answer (``rclpy.parameter_client.AsyncParameterClient.services_are_ready``),
+so every robot needs an rclpy node with its six services: twelve DDS endpoints besides its
+own topics. This script measures that floor with plain rclpy nodes and no aes-swarm code:
+node ``/mona_<i>/aes_robot`` with a ``cmd_vel`` and an ``aes_force`` publisher, with or
+without the parameter services (``start_parameter_services``).
+
+1. ``one process``: N such nodes in one process, seconds to create them, with and
+   without the services. Fast DDS pairs each new endpoint with every endpoint of the
+   participant (copying its proxy data), so the time grows with N² once the services are
+   there.
+2. ``1000 nodes in P processes``: wall seconds from starting P processes until the last
+   has created its share, once with the processes discovering each other (one domain, as
+   a launch does) and once each in a domain of its own (no discovery between them: the
+   floor any split of the robots over processes could reach).
+
+Usage::
+
+    python bench/bench_startup.py             # ~10 min
+    python bench/bench_startup.py --quick     # smaller counts (~1 min)
+
+Prints a table and, as its last line, ``RESULT robots=1000 … start_s_shared=…
+start_s_isolated=… services_ratio_<N>=… machine_ref_us=…`` (ratios of the same run).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from aes_ros.ros.launch.processes import clean_shared_memory
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_ros import machine_reference_us  # a sibling script, not a package
+
+#: Domain IDs of this benchmark (far from the tests' and the launcher's defaults).
+FIRST_DOMAIN = 150
+
+
+def child(first: int, count: int, services: bool) -> int:
+    """Create ``count`` robot-like nodes, print the seconds it took, wait to be killed."""
+    import rclpy
+    from geometry_msgs.msg import Twist, Vector3Stamped
+    from rclpy.node import Node
+
+    rclpy.init()
+    start = time.perf_counter()
+    nodes = []
+    for i in range(first, first + count):
+        node = Node("aes_robot", namespace=f"mona_{i}", start_parameter_services=services)
+        node.create_publisher(Twist, "cmd_vel", 1)
+        node.create_publisher(Vector3Stamped, "aes_force", 1)
+        nodes.append(node)
+    print(f"created {time.perf_counter() - start:.3f}", flush=True)
+    # Killed, with all the others at once, by the parent: tearing the nodes down one by
+    # one is quadratic too, and a process that leaves while others still send to it can
+    # leave a shared-memory port locked (Fast DDS then blocks its senders for good).
+    sys.stdin.read()
+    return 0
+
+
+def _run_children(
+    children_env: list[dict[str, str]], shares: list[tuple[int, int]], services: bool
+) -> list[float]:
+    """Start one child per share, return each one's creation seconds once all are
+    done, then kill them all together."""
+    cmd = [sys.executable, __file__, "--child"]
+    children = [
+        subprocess.Popen(
+            [*cmd, str(first), str(count), str(int(services))],
+            env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        )
+        for env, (first, count) in zip(children_env, shares, strict=True)
+    ]  # fmt: skip
+    try:
+        lines = [proc.stdout.readline() for proc in children]
+    finally:
+        for proc in children:
+            proc.kill()
+        for proc in children:
+            proc.wait()
+    if not all(line.startswith("created") for line in lines):
+        raise RuntimeError(f"a child failed: {lines!r}")
+    return [float(line.split()[1]) for line in lines]
+
+
+def start_processes(robots: int, processes: int, services: bool, shared: bool) -> float:
+    """Wall seconds until every one of ``processes`` children created its robots."""
+    share = robots // processes
+    domains = [FIRST_DOMAIN if shared else FIRST_DOMAIN + 1 + p for p in range(processes)]
+    envs = [dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(d))
+            for d in domains]  # fmt: skip
+    start = time.perf_counter()
+    _run_children(envs, [(p * share, share) for p in range(processes)], services)
+    wall = time.perf_counter() - start
+    for domain in set(domains):
+        clean_shared_memory(domain)
+    return wall
+
+
+def one_process(robots: int, services: bool) -> float:
+    """Seconds one process takes to create ``robots`` nodes (its own count, not the wall)."""
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env["ROS_DOMAIN_ID"] = str(FIRST_DOMAIN)
+    (seconds,) = _run_children([env], [(0, robots)], services)
+    clean_shared_memory(FIRST_DOMAIN)
+    return seconds
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smaller counts (~1 min)")
+    parser.add_argument("--child", nargs=3, type=int, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.child:
+        first, count, services = args.child
+        return child(first, count, bool(services))
+
+    ref_before = machine_reference_us()
+    single = (50, 100) if args.quick else (50, 100, 200, 300)
+    robots, splits = (200, (2, 10)) if args.quick else (1000, (2, 10, 20))
+    print(f"machine: {ref_before:.2f} µs per agent-step of bench_sim's per-agent loop")
+    print("\none process: seconds to create N nodes")
+    print(f"{'N':>6} {'no services':>12} {'6 services':>11} {'ratio':>6}")
+    ratios = {}
+    for n in single:
+        bare, full = one_process(n, False), one_process(n, True)
+        ratios[n] = full / bare
+        print(f"{n:>6} {bare:>12.2f} {full:>11.2f} {ratios[n]:>6.1f}", flush=True)
+
+    print(f"\n{robots} nodes with their 6 services in P processes: wall seconds until all exist")
+    print(f"{'P':>4} {'discovering each other':>23} {'isolated (floor)':>17}")
+    walls = {}
+    for p in splits:
+        walls[p] = (start_processes(robots, p, True, True), start_processes(robots, p, True, False))
+        print(f"{p:>4} {walls[p][0]:>23.1f} {walls[p][1]:>17.1f}", flush=True)
+    ref = (ref_before + machine_reference_us()) / 2
+    best_shared = min(w[0] for w in walls.values())
+    best_isolated = min(w[1] for w in walls.values())
+    ratio_text = " ".join(f"services_ratio_{n}={r:.1f}" for n, r in ratios.items())
+    print(
+        f"RESULT robots={robots} start_s_shared={best_shared:.1f} "
+        f"start_s_isolated={best_isolated:.1f} {ratio_text} machine_ref_us={ref:.2f}"
+    )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
