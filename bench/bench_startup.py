@@ -67,50 +67,48 @@ def child(first: int, count: int, services: bool) -> int:
 
 
 def _run_children(
-    children_env: list[dict[str, str]], shares: list[tuple[int, int]], services: bool
-) -> list[float]:
-    """Start one child per share, return each one's creation seconds once all are
-    done, then kill them all together."""
+    domains: list[int], shares: list[tuple[int, int]], services: bool
+) -> tuple[list[float], float]:
+    """Start one child per share (``(first, count)``, in the ROS domain beside it), and
+    once all are done: each one's creation seconds and the wall seconds from starting
+    them. Then kill them all together and remove what they left in shared memory."""
     cmd = [sys.executable, __file__, "--child"]
+    start = time.perf_counter()
     children = [
         subprocess.Popen(
             [*cmd, str(first), str(count), str(int(services))],
-            env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+                     ROS_DOMAIN_ID=str(domain)),
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
         )
-        for env, (first, count) in zip(children_env, shares, strict=True)
+        for domain, (first, count) in zip(domains, shares, strict=True)
     ]  # fmt: skip
     try:
         lines = [proc.stdout.readline() for proc in children]
+        wall = time.perf_counter() - start
     finally:
         for proc in children:
             proc.kill()
         for proc in children:
             proc.wait()
+        for domain in set(domains):
+            clean_shared_memory(domain)
     if not all(line.startswith("created") for line in lines):
         raise RuntimeError(f"a child failed: {lines!r}")
-    return [float(line.split()[1]) for line in lines]
+    return [float(line.split()[1]) for line in lines], wall
 
 
 def start_processes(robots: int, processes: int, services: bool, shared: bool) -> float:
     """Wall seconds until every one of ``processes`` children created its robots."""
     share = robots // processes
     domains = [FIRST_DOMAIN if shared else FIRST_DOMAIN + 1 + p for p in range(processes)]
-    envs = [dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(d))
-            for d in domains]  # fmt: skip
-    start = time.perf_counter()
-    _run_children(envs, [(p * share, share) for p in range(processes)], services)
-    wall = time.perf_counter() - start
-    for domain in set(domains):
-        clean_shared_memory(domain)
+    _, wall = _run_children(domains, [(p * share, share) for p in range(processes)], services)
     return wall
 
 
 def one_process(robots: int, services: bool) -> float:
     """Seconds one process takes to create ``robots`` nodes (its own count, not the wall)."""
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    env["ROS_DOMAIN_ID"] = str(FIRST_DOMAIN)
-    (seconds,) = _run_children([env], [(0, robots)], services)
-    clean_shared_memory(FIRST_DOMAIN)
+    (seconds,), _ = _run_children([FIRST_DOMAIN], [(0, robots)], services)
     return seconds
 
 
