@@ -34,7 +34,6 @@ from typing import Any
 import numpy as np
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist, Vector3Stamped
-from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -123,15 +122,7 @@ class RobotNode(Node):
         # Both are published in their wire format (aes_ros.ros.cdr): converting Twist
         # objects was over half of a robot's publishing cost.
         self._cmd_pub = self.create_publisher(Twist, names.CMD_VEL, COMMAND_KEPT)
-        # Whether anyone reads aes_force comes from the matched event: asking the
-        # middleware at every publish was 6 % of a host's time (odom source).
-        self._force_heard = False
-        self._force_pub = self.create_publisher(
-            Vector3Stamped,
-            names.AES_FORCE,
-            COMMAND,
-            event_callbacks=PublisherEventCallbacks(matched=self._on_force_matched),
-        )
+        self._force_pub = self.create_publisher(Vector3Stamped, names.AES_FORCE, COMMAND)
         self._force_encoder = Vector3StampedEncoder(names.WORLD_FRAME)
         self.counter = PublishCounter()
 
@@ -333,9 +324,6 @@ class RobotNode(Node):
 
     # --- output -----------------------------------------------------------------------
 
-    def _on_force_matched(self, info: QoSPublisherMatchedInfo) -> None:
-        self._force_heard = info.current_count > 0
-
     def publish_command(self, stamp: Time, result: RobotCommand) -> None:
         """Publish ``cmd_vel`` (zero while the swarm is disabled) and, if anyone
         listens, ``aes_force`` for one evaluated input stamped ``stamp``."""
@@ -353,7 +341,7 @@ class RobotNode(Node):
         else:
             cmd = encode_twist(0.0, 0.0)
         self.counter.publish(self._cmd_pub, cmd)
-        if self._force_heard:  # liveness and inspection: skip when unheard
+        if self._force_pub.get_subscription_count():  # for inspection: skip when unheard
             data = self._force_encoder.encode(stamp.sec, stamp.nanosec, force[0], force[1])
             self._force_pub.publish(data)
 
