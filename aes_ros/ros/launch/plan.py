@@ -188,11 +188,15 @@ def write_scenario(scenario: Scenario, path: Path) -> Path:
 
 
 def robot_parameters(
-    config: LaunchConfig, i: int, scenario_file: Path | None = None
+    config: LaunchConfig,
+    i: int,
+    sheet: tuple[np.ndarray, np.ndarray],
+    scenario_file: Path | None = None,
 ) -> dict[str, Any]:
-    """SPEC §7 parameters of robot i for a stand-alone ``aes-robot-node``."""
+    """SPEC §7 parameters of robot i for a stand-alone ``aes-robot-node``; ``sheet`` is
+    the (neighbours, rest lengths) table of ``config.scenario.sheet()``."""
     sc = config.scenario
-    _, neighbors, rest = sc.sheet()
+    neighbors, rest = sheet
     valid = neighbors[i] >= 0
     params: dict[str, Any] = {
         "use_sim_time": True,
@@ -212,9 +216,12 @@ def robot_parameters(
 
 def write_robot_params(config: LaunchConfig, path: Path, scenario_file: Path) -> Path:
     """One ROS 2 parameter file with a ``/mona_<i>/aes_robot`` section per robot."""
+    # The sheet once for all robots: once per robot was quadratic, 1000 robots
+    # spent over a minute here before any process started.
+    _, neighbors, rest = config.scenario.sheet()
     doc = {
         f"{names.robot_namespace(i)}/{names.ROBOT_NODE}": {
-            "ros__parameters": _plain(robot_parameters(config, i, scenario_file))
+            "ros__parameters": _plain(robot_parameters(config, i, (neighbors, rest), scenario_file))
         }
         for i in range(config.num_robots)
     }
