@@ -125,8 +125,18 @@ class World:
             path = Path(tmp) / "mona.urdf"
             path.write_text(urdf(g))
             flags = pb.URDF_USE_IMPLICIT_CYLINDER | pb.URDF_ENABLE_CACHED_GRAPHICS_SHAPES
+            # Each body at its start pose right away: loaded all at the origin, every
+            # later change to a body made the broadphase test it against all the
+            # others piled up there (1000 robots: 103 s to build the world).
             self.bodies = [
-                pb.loadURDF(str(path), flags=flags, physicsClientId=c) for _ in range(self.n)
+                pb.loadURDF(
+                    str(path),
+                    basePosition=centre,
+                    baseOrientation=orientation,
+                    flags=flags,
+                    physicsClientId=c,
+                )
+                for centre, orientation in self._base_poses(*self.initial)
             ]
         # Robot-robot contacts only between bodies; wheels and caster touch only the
         # floor. The body rides ground_clearance above the floor on wheels and caster,
@@ -173,22 +183,29 @@ class World:
     def _place(self, positions: np.ndarray, headings: np.ndarray) -> None:
         """Put every body at its pose (at rest, on the ground)."""
         c = self._client
-        centres = self._body_centres(positions, headings)
-        half = 0.5 * headings
-        for body, (x, y, z), qz, qw in zip(
-            self.bodies,
-            centres.tolist(),
-            np.sin(half).tolist(),
-            np.cos(half).tolist(),
-            strict=True,
+        for body, (centre, orientation) in zip(
+            self.bodies, self._base_poses(positions, headings), strict=True
         ):
-            pb.resetBasePositionAndOrientation(
-                body, (x, y, z), (0.0, 0.0, qz, qw), physicsClientId=c
-            )
+            pb.resetBasePositionAndOrientation(body, centre, orientation, physicsClientId=c)
             if self.mode == "dynamic":
                 pb.resetBaseVelocity(body, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), physicsClientId=c)
                 for j in self._wheels:
                     pb.resetJointState(body, j, 0.0, 0.0, physicsClientId=c)
+
+    def _base_poses(
+        self, positions: np.ndarray, headings: np.ndarray
+    ) -> list[tuple[list[float], tuple[float, float, float, float]]]:
+        """pybullet base pose of every body: (centre, quaternion x, y, z, w)."""
+        half = 0.5 * headings
+        return [
+            (centre, (0.0, 0.0, qz, qw))
+            for centre, qz, qw in zip(
+                self._body_centres(positions, headings).tolist(),
+                np.sin(half).tolist(),
+                np.cos(half).tolist(),
+                strict=True,
+            )
+        ]
 
     def _body_centres(self, positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
         """pybullet base positions (N, 3): body centre, ``axle_offset`` ahead of base_link."""
