@@ -74,20 +74,27 @@ class SwarmInputs:
     # --- the robots of this process -------------------------------------------------
 
     def add(self, robot: RobotNode) -> None:
+        # Counted for the new robot alone: recounting all was quadratic in a host
+        # adding its robots one by one.
         self.robots.append(robot)
-        self.changed()
+        self._update(self._odom_robots + (not robot.uses_poses))
 
     def remove(self, robot: RobotNode) -> None:
         self.listen_odom(robot, {})
         if robot in self.robots:
             self.robots.remove(robot)
-            self.changed()
+            self._update(self._odom_robots - (not robot.uses_poses))
 
     def changed(self) -> None:
         """A robot changed its id or neighbour source: re-check liveness subscriptions
         (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed at all."""
+        self._update(sum(1 for robot in self.robots if not robot.uses_poses))
+
+    def _update(self, odom_robots: int) -> None:
+        """As :meth:`changed`, with ``odom_robots`` of :attr:`robots` in the ``odom`` source."""
         self.version += 1
-        wanted = any(robot.uses_poses for robot in self.robots)
+        self._odom_robots = odom_robots
+        wanted = odom_robots < len(self.robots)  # some robot reads /swarm/poses
         if wanted and self._poses_sub is None:
             self._poses_sub = self.node.create_subscription(
                 PoseArray, names.POSES, self.on_poses, SENSOR, raw=True
@@ -95,7 +102,6 @@ class SwarmInputs:
         elif not wanted and self._poses_sub is not None:
             self.node.destroy_subscription(self._poses_sub)
             self._poses_sub = None
-        self._odom_robots = sum(1 for robot in self.robots if not robot.uses_poses)
         if self._odom_robots and self._odom_timer is None:
             steady = Clock(clock_type=ClockType.STEADY_TIME)
             self._odom_timer = self.node.create_timer(ODOM_WAIT, self._flush_late, clock=steady)
