@@ -17,10 +17,15 @@ without the parameter services (``start_parameter_services``).
    a launch does) and once each in a domain of its own (no discovery between them: the
    floor any split of the robots over processes could reach).
 
+Fast DDS runs with its defaults, or with ``--profile launch`` with the profile every
+process of a launch gets (``aes_ros/ros/fastdds_profile.xml``: among others, a participant
+does not match its own endpoints, which removes most of the cost in one process).
+
 Usage::
 
-    python bench/bench_startup.py             # ~10 min
-    python bench/bench_startup.py --quick     # smaller counts (~1 min)
+    python bench/bench_startup.py                     # ~10 min
+    python bench/bench_startup.py --profile launch    # ~5 min
+    python bench/bench_startup.py --quick             # smaller counts (~1 min)
 
 Prints a table and, as its last line, ``RESULT robots=1000 … start_s_shared=…
 start_s_isolated=… services_ratio_<N>=… machine_ref_us=…`` (ratios of the same run).
@@ -35,7 +40,7 @@ import sys
 import time
 from pathlib import Path
 
-from aes_ros.ros.launch.processes import clean_shared_memory
+from aes_ros.ros.launch.processes import PROFILE_VARIABLES, clean_shared_memory, fastdds_environment
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ros import machine_reference_us  # a sibling script, not a package
@@ -66,6 +71,10 @@ def child(first: int, count: int, services: bool) -> int:
     return 0
 
 
+#: The children's environment: Fast DDS's defaults unless main() picks the launch's profile.
+CHILD_ENV = {k: v for k, v in os.environ.items() if k not in PROFILE_VARIABLES}
+
+
 def _run_children(
     domains: list[int], shares: list[tuple[int, int]], services: bool
 ) -> tuple[list[float], float]:
@@ -77,7 +86,7 @@ def _run_children(
     children = [
         subprocess.Popen(
             [*cmd, str(first), str(count), str(int(services))],
-            env=dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+            env=dict(CHILD_ENV, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                      ROS_DOMAIN_ID=str(domain)),
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
         )
@@ -115,16 +124,25 @@ def one_process(robots: int, services: bool) -> float:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--quick", action="store_true", help="smaller counts (~1 min)")
+    parser.add_argument(
+        "--profile",
+        choices=("default", "launch"),
+        default="default",
+        help="Fast DDS's defaults, or the profile of aes-swarm launch",
+    )
     parser.add_argument("--child", nargs=3, type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
         first, count, services = args.child
         return child(first, count, bool(services))
 
+    if args.profile == "launch":
+        CHILD_ENV.update(fastdds_environment({}))
     ref_before = machine_reference_us()
     single = (50, 100) if args.quick else (50, 100, 200, 300)
     robots, splits = (200, (2, 10)) if args.quick else (1000, (2, 10, 20))
     print(f"machine: {ref_before:.2f} µs per agent-step of bench_sim's per-agent loop")
+    print(f"Fast DDS profile: {CHILD_ENV.get(PROFILE_VARIABLES[0], 'none (defaults)')}")
     print("\none process: seconds to create N nodes")
     print(f"{'N':>6} {'no services':>12} {'6 services':>11} {'ratio':>6}")
     ratios = {}
@@ -144,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     best_isolated = min(w[1] for w in walls.values())
     ratio_text = " ".join(f"services_ratio_{n}={r:.1f}" for n, r in ratios.items())
     print(
-        f"RESULT robots={robots} start_s_shared={best_shared:.1f} "
+        f"RESULT profile={args.profile} robots={robots} start_s_shared={best_shared:.1f} "
         f"start_s_isolated={best_isolated:.1f} {ratio_text} machine_ref_us={ref:.2f}"
     )
     return 0
