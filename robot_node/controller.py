@@ -118,6 +118,7 @@ class RobotController:
             settings.rest_lengths,
         ):
             self._neighbors = np.array(settings.neighbors, dtype=np.int64)
+            self._neighbor_ids = tuple(settings.neighbors)
             # NaN marks a rest length still to be latched from the first distance seen.
             rest = settings.rest_lengths or (np.nan,) * len(settings.neighbors)
             self._rest = np.array(rest, dtype=float)
@@ -174,20 +175,16 @@ class RobotController:
     def odom_input(self, stamp_ns: int, x: float, y: float, yaw: float) -> RobotInput:
         """The control law's inputs for one own odometry message (``odom`` source), with
         the neighbours whose odometry is no older than ``neighbor_timeout``."""
-        slots, positions = [], []
-        for slot, j in enumerate(self._neighbors.tolist()):
-            heard = self._neighbor_odom.get(j)
-            if heard is not None and stamp_ns - heard[0] <= self.liveness.timeout_ns:
-                slots.append(slot)
-                positions.append(heard[1:])
-        return self._input(
-            stamp_ns,
-            np.array([x, y]),
-            yaw,
-            np.array(slots, dtype=np.int64),
-            np.array(positions, dtype=float).reshape(-1, 2),
-            None,
-        )
+        oldest = stamp_ns - self.liveness.timeout_ns
+        heard = [self._neighbor_odom.get(j) for j in self._neighbor_ids]
+        fresh = [h is not None and h[0] >= oldest for h in heard]
+        if all(fresh):  # the usual case: every slot, in order (no index arrays)
+            slots = None
+        else:
+            slots = np.flatnonzero(fresh)
+            heard = [heard[k] for k in slots.tolist()]
+        positions = np.array([h[1:] for h in heard], dtype=float).reshape(-1, 2)
+        return self._input(stamp_ns, np.array([x, y]), yaw, slots, positions, None)
 
     def _input(
         self,
