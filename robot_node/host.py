@@ -85,7 +85,11 @@ class RobotHostNode(Node):
             # needs; creating it is over half the cost of a robot node (200 robots:
             # 5.2 s -> 2.9 s), and the cost per node grows with the process's node count.
             Parameter("start_type_description_service", Parameter.Type.BOOL, False),
+            # Sim time comes from this node (_share_clock): made with it, every robot
+            # would subscribe to /clock only to drop the subscription again.
+            Parameter("use_sim_time", Parameter.Type.BOOL, False),
         ]
+        sim_time = bool(self.get_parameter("use_sim_time").value)
         self.robots: list[RobotNode] = []
         for i in ids:
             keep = table[i] >= 0
@@ -105,7 +109,8 @@ class RobotHostNode(Node):
                 namespace=names.robot_namespace(i),
                 parameter_overrides=overrides,
             )
-            self._share_clock(robot)
+            if sim_time:
+                self._share_clock(robot)
             self.robots.append(robot)
         self.get_logger().info(
             f"{names.ROBOTS_READY} {len(self.robots)} robots ({ids[0]}…{ids[-1]}), "
@@ -113,20 +118,23 @@ class RobotHostNode(Node):
         )
 
     def _share_clock(self, robot: RobotNode) -> None:
-        """With use_sim_time, the robot's clock is this node's (sim time from its ``/clock``).
+        """Put the robot on sim time: its clock is this node's, driven by this node's ``/clock``.
 
         Every node subscribes to ``/clock`` on its own otherwise: measured 18 % of a
         core at 50 Hz for 100 robots in one process, for time the robots hardly use
-        (the stamps of their parameter events). One clock rather than one per robot
-        kept in step: setting 100 clocks at each ``/clock`` was 3 % of a host.
-        rclpy has no public API for sharing a time source or a clock, hence the
-        private ``_time_source`` and ``_clock`` (rclpy 7.1; ``get_clock()`` returns
-        ``_clock``).
+        (the stamps of their parameter events); one clock rather than one per robot
+        kept in step, as setting 100 clocks at each ``/clock`` was 3 % of a host. The
+        robot was made with ``use_sim_time`` false, and creating its own ``/clock``
+        subscription and dropping it again was a sixth of a host's start (500 robots);
+        with its time source detached, setting ``use_sim_time`` true makes
+        ``ros2 param get`` tell the truth and subscribes to nothing. So a host's
+        ``use_sim_time`` holds for all its robots. rclpy has no public API for sharing
+        a time source or a clock, hence the private ``_time_source`` and ``_clock``
+        (rclpy 7.1; ``get_clock()`` returns ``_clock``).
         """
-        if not robot.get_parameter("use_sim_time").value:
-            return
-        robot._time_source.detach_node()  # drops the robot's own /clock subscription
+        robot._time_source.detach_node()
         robot._clock = self.get_clock()
+        robot.set_parameters([Parameter("use_sim_time", Parameter.Type.BOOL, True)])
 
     def destroy_node(self) -> None:
         for robot in self.robots:

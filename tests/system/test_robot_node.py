@@ -251,7 +251,7 @@ def test_odom_source_and_neighbour_timeout(spawn, probe):
 @pytest.mark.parametrize("source", ["poses", "odom"])
 def test_host_runs_every_robot(spawn, probe, source):
     """A host with 4 robots publishes every robot's command, equal to the control law
-    with the process-wide -p overrides applied to every robot."""
+    with the process-wide -p overrides (use_sim_time among them) applied to every robot."""
     proc = spawn.start(
         "aes-robot-host",
         "--ros-args",
@@ -263,6 +263,8 @@ def test_host_runs_every_robot(spawn, probe, source):
         f"neighbor_source:={source}",
         "-p",
         "alpha:=0.1",
+        "-p",
+        "use_sim_time:=true",
         *NOISE_OFF,
         name="host",
     )
@@ -301,11 +303,10 @@ def test_host_runs_every_robot(spawn, probe, source):
     probe.until(send, all_match)
     for i in range(4):
         assert_command(cmds[i][-1], forces[i][-1], wants[i])
-    assert probe.get_parameters("/mona_2/aes_robot", ["robot_id", "alpha", "neighbor_source"]) == [
-        2,
-        0.1,
-        source,
-    ]
+    # use_sim_time: the host's clock drives the robots', and the parameter says so
+    assert probe.get_parameters(
+        "/mona_2/aes_robot", ["robot_id", "alpha", "neighbor_source", "use_sim_time"]
+    ) == [2, 0.1, source, True]
     assert spawn.stop(proc) == 0  # SIGINT: clean shutdown
     assert "Traceback" not in spawn.log(proc).read_text()
 
