@@ -264,10 +264,19 @@ class RobotNode(Node):
         )
 
     def _apply_parameters(self) -> None:
-        """Hand the parameters to the controller and fix the subscriptions."""
+        """Hand the parameters to the controller and fix the subscriptions; tell the
+        process's inputs when what they track changed (id, source, neighbours: a
+        recount over all its robots)."""
+        old = self.controller.settings
         self.controller.configure(self._settings())
         self._sync_subscriptions()
-        self._inputs.changed()
+        new = self.controller.settings
+        if (old.robot_id, old.neighbor_source, old.neighbors) != (
+            new.robot_id,
+            new.neighbor_source,
+            new.neighbors,
+        ):
+            self._inputs.changed()
 
     def _sync_subscriptions(self) -> None:
         """Receive the odometry the neighbour source needs (own and neighbours'), and
