@@ -57,13 +57,12 @@ CORES = 2
 
 def control_us(robots: int, rate: float, steps: int) -> float:
     """µs of CPU per robot-step of the control law of ``robots`` robots, without ROS."""
-    from aes_ros.model import GAIN_FIELDS, Gains, evaluate_robots
+    from aes_ros.model import evaluate_robots
     from aes_ros.ros.cdr import PoseArrayEncoder, decode_pose_array, encode_twist
     from robot_node.controller import RobotController, RobotSettings
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     _, table, rest = sc.sheet()
-    gains = Gains(**{name: sc.values[name] for name in GAIN_FIELDS})
     controllers = []
     for i in range(robots):
         keep = table[i] >= 0
@@ -71,7 +70,7 @@ def control_us(robots: int, rate: float, steps: int) -> float:
             robot_id=i,
             neighbors=tuple(table[i][keep].tolist()),
             rest_lengths=tuple(rest[i][keep].tolist()),
-            gains=gains,
+            gains=sc.gains,
             limits=(sc.max_linear_speed, sc.max_angular_speed),
             neighbor_timeout=1.0,
             seed=0,
