@@ -86,8 +86,8 @@ class SwarmInputs:
             self._update(self._odom_robots - (not robot.uses_poses))
 
     def changed(self) -> None:
-        """A robot changed its id or neighbour source: re-check liveness subscriptions
-        (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed at all."""
+        """A robot changed its id, neighbour source or neighbours: re-check liveness
+        subscriptions (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed."""
         self._update(sum(1 for robot in self.robots if not robot.uses_poses))
 
     def _update(self, odom_robots: int) -> None:
