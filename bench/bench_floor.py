@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
-from aes_ros.ros.launch.processes import clean_shared_memory
+from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ros import machine_reference_us  # a sibling script, not a package

@@ -40,7 +40,8 @@ import sys
 import time
 from pathlib import Path
 
-from aes_ros.ros.launch.processes import PROFILE_VARIABLES, clean_shared_memory, fastdds_environment
+from aes_ros.ros.launch.processes import PROFILE_VARIABLES, fastdds_environment
+from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ros import machine_reference_us  # a sibling script, not a package

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -19,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from aes_ros.ros.launch.plan import LaunchError
+from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 
 def executable(name: str) -> str:
@@ -148,62 +148,7 @@ def fastdds_environment(env: dict[str, str]) -> dict[str, str]:
     return {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(FASTDDS_PROFILE)}
 
 
-#: Where Fast DDS keeps its shared-memory files (Linux).
-SHM_DIR = Path("/dev/shm")
-_PORT_FILE = re.compile(r"(?:sem\.)?fastrtps_port(\d+)(?:_el|_sl|_mutex)?")
-
-
 def ros_domain(env: dict[str, str]) -> int:
     """The ROS domain id of an environment (0 when unset or not a number)."""
     value = env.get("ROS_DOMAIN_ID", "0")
     return int(value) if value.isdigit() else 0
-
-
-def leftover_ports(domain: int) -> list[Path]:
-    """Fast DDS shared-memory port files of ``domain`` that no live process has mapped
-    (the port, its lock files and its semaphore).
-
-    A port is a file per listening locator (DDS port 7400 + 250 · domain + offset).
-    Its listener removes it when it shuts down, but not while another process still
-    maps it, and then nobody does: processes that stop together (or are killed)
-    leave port files behind, which ``fastdds shm clean`` does not recognise (they
-    have no lock file any more). Only ports of ``domain`` are considered (other
-    domains belong to other swarms and test runs), and those below the first
-    domain's (7400), which every participant of the machine shares.
-    """
-    low = 7400 + 250 * domain
-
-    def ours(port: int) -> bool:
-        return port < 7400 or low <= port < low + 250
-
-    files = [
-        path
-        for path in SHM_DIR.glob("*fastrtps_port*")
-        if (m := _PORT_FILE.fullmatch(path.name)) and ours(int(m.group(1)))
-    ]
-    if not files:
-        return []
-    mapped: set[str] = set()
-    for maps in Path("/proc").glob("[0-9]*/maps"):
-        try:
-            text = maps.read_text()
-        except OSError:  # gone, or not ours to read
-            continue
-        mapped.update(
-            line.rsplit(None, 1)[-1] for line in text.splitlines() if "fastrtps_port" in line
-        )
-    return [path for path in files if str(path) not in mapped]
-
-
-def clean_shared_memory(domain: int | None = None) -> None:
-    """Remove Fast DDS shared-memory files whose processes are gone: ``fastdds shm
-    clean`` (segments), and with ``domain`` the port files of that ROS domain that no
-    live process maps (:func:`leftover_ports`)."""
-    with contextlib.suppress(LaunchError, OSError, subprocess.SubprocessError):
-        tool = executable("fastdds")
-        subprocess.run([tool, "shm", "clean"], capture_output=True, timeout=30, check=False)
-    if domain is None:
-        return
-    for path in leftover_ports(domain):
-        with contextlib.suppress(OSError):
-            path.unlink()

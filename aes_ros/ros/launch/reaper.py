@@ -7,7 +7,7 @@ to ``--grace`` seconds for the node processes listed in ``PIDS_FILE`` (one pid
 per line; they get SIGTERM from the kernel when their parent dies and shut down
 cleanly), SIGKILLs what is left, and removes the Fast DDS shared-memory files
 they left in the launcher's ROS domain
-(:func:`aes_ros.ros.launch.processes.clean_shared_memory`).
+(:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ import sys
 import time
 from pathlib import Path
 
-from aes_ros.ros.launch.processes import clean_shared_memory, ros_domain
+from aes_ros.ros.launch.processes import ros_domain
+from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 
 def alive(pid: int) -> bool:
