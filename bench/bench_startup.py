@@ -72,12 +72,14 @@ def child(first: int, count: int, services: bool) -> int:
     return 0
 
 
-#: The children's environment: Fast DDS's defaults unless main() picks the launch's profile.
-CHILD_ENV = {k: v for k, v in os.environ.items() if k not in PROFILE_VARIABLES}
+def child_environment(profile: str) -> dict[str, str]:
+    """The children's environment: Fast DDS's defaults, or (``launch``) the launch's profile."""
+    env = {k: v for k, v in os.environ.items() if k not in PROFILE_VARIABLES}
+    return fastdds_environment(env) if profile == "launch" else env
 
 
 def _run_children(
-    domains: list[int], shares: list[tuple[int, int]], services: bool
+    env: dict[str, str], domains: list[int], shares: list[tuple[int, int]], services: bool
 ) -> tuple[list[float], float]:
     """Start one child per share (``(first, count)``, in the ROS domain beside it), and
     once all are done: each one's creation seconds and the wall seconds from starting
@@ -87,7 +89,7 @@ def _run_children(
     children = [
         subprocess.Popen(
             [*cmd, str(first), str(count), str(int(services))],
-            env=dict(CHILD_ENV, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+            env=dict(env, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
                      ROS_DOMAIN_ID=str(domain)),
             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
         )
@@ -108,17 +110,19 @@ def _run_children(
     return [float(line.split()[1]) for line in lines], wall
 
 
-def start_processes(robots: int, processes: int, services: bool, shared: bool) -> float:
+def start_processes(
+    env: dict[str, str], robots: int, processes: int, services: bool, shared: bool
+) -> float:
     """Wall seconds until every one of ``processes`` children created its robots."""
     share = robots // processes
     domains = [FIRST_DOMAIN if shared else FIRST_DOMAIN + 1 + p for p in range(processes)]
-    _, wall = _run_children(domains, [(p * share, share) for p in range(processes)], services)
+    _, wall = _run_children(env, domains, [(p * share, share) for p in range(processes)], services)
     return wall
 
 
-def one_process(robots: int, services: bool) -> float:
+def one_process(env: dict[str, str], robots: int, services: bool) -> float:
     """Seconds one process takes to create ``robots`` nodes (its own count, not the wall)."""
-    (seconds,), _ = _run_children([FIRST_DOMAIN], [(0, robots)], services)
+    (seconds,), _ = _run_children(env, [FIRST_DOMAIN], [(0, robots)], services)
     return seconds
 
 
@@ -137,18 +141,17 @@ def main(argv: list[str] | None = None) -> int:
         first, count, services = args.child
         return child(first, count, bool(services))
 
-    if args.profile == "launch":
-        CHILD_ENV.update(fastdds_environment({}))
+    env = child_environment(args.profile)
     ref_before = machine_reference_us()
     single = (50, 100) if args.quick else (50, 100, 200, 300)
     robots, splits = (200, (2, 10)) if args.quick else (1000, (2, 10, 20))
     print(f"machine: {ref_before:.2f} µs per agent-step of bench_sim's per-agent loop")
-    print(f"Fast DDS profile: {CHILD_ENV.get(PROFILE_VARIABLES[0], 'none (defaults)')}")
+    print(f"Fast DDS profile: {env.get(PROFILE_VARIABLES[0], 'none (defaults)')}")
     print("\none process: seconds to create N nodes")
     print(f"{'N':>6} {'no services':>12} {'6 services':>11} {'ratio':>6}")
     ratios = {}
     for n in single:
-        bare, full = one_process(n, False), one_process(n, True)
+        bare, full = one_process(env, n, False), one_process(env, n, True)
         ratios[n] = full / bare
         print(f"{n:>6} {bare:>12.2f} {full:>11.2f} {ratios[n]:>6.1f}", flush=True)
 
@@ -156,7 +159,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{'P':>4} {'discovering each other':>23} {'isolated (floor)':>17}")
     walls = {}
     for p in splits:
-        walls[p] = (start_processes(robots, p, True, True), start_processes(robots, p, True, False))
+        walls[p] = (
+            start_processes(env, robots, p, True, True),
+            start_processes(env, robots, p, True, False),
+        )
         print(f"{p:>4} {walls[p][0]:>23.1f} {walls[p][1]:>17.1f}", flush=True)
     ref = (ref_before + machine_reference_us()) / 2
     best_shared = min(w[0] for w in walls.values())
