@@ -26,7 +26,10 @@ Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default
 ``RESULT robots=… hz=… source=… rate_hz=… rate_min_hz=… rtf=… p99_ms=… start_s=…
 cpu_us_per_robot_step=… baseline_cpu_us_per_robot_step=… efficiency_ratio=…
 efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses (or the first
-configuration measured if that one is not in the grid).
+configuration measured if that one is not in the grid). Before it, the goals of issue
+#13 that the run's rows can judge (efficiency ratios, odometry at 100 robots and 50 Hz,
+the start and rate of 1000 robots), each ``met`` or ``NOT met; bound: <the benchmark or
+profile that shows what bounds it>``.
 
 Every figure is printed beside the machine's speed in the same run:
 ``machine_ref_us`` is µs of one agent-step of ``bench/bench_sim.py``'s per-agent
@@ -77,6 +80,11 @@ STANDARD_GRID = [
     (16, 20, "odom", "per-robot"),
 ]
 QUICK_GRID = [(16, 20, "poses", "auto")]
+
+#: Where a goal's bound is measured when the run does not meet it.
+FLOOR = "bench/bench_floor.py (the floor of one cmd_vel topic per robot)"
+PROFILE = "docs/performance.md, 'Where the goals of issue #13 stand' (py-spy profile)"
+DISCOVERY = "bench/bench_startup.py --profile launch (nodes with services, no robot code)"
 
 
 @dataclass
@@ -301,6 +309,45 @@ def physics_rtf(robots: int = 100, physics_rate: float = 240.0, seconds: float =
     return steps * dt / wall
 
 
+def _row(rows: list[Row], robots: int, rate: float, source: str, design: str = "aes") -> Row | None:
+    return next(
+        (r for r in rows
+         if (r.robots, r.rate, r.source, r.design) == (robots, rate, source, design)),
+        None,
+    )  # fmt: skip
+
+
+def goal_lines(rows: list[Row]) -> list[str]:
+    """Issue #13's goals that this run's rows can judge, one line each: the goal, the
+    measured figure, ``met`` or ``NOT met`` and then where the bound is shown."""
+    lines = []
+
+    def judge(goal: str, figure: str, met: bool, bound: str) -> None:
+        lines.append(f"{goal:<44} {figure:<30} {'met' if met else 'NOT met; bound: ' + bound}")
+
+    naive = next((r for r in rows if r.design == "naive"), None)
+    for source, least in (("poses", 5.0), ("odom", 3.0)):
+        ours = naive and _row(rows, naive.robots, naive.rate, source)
+        if naive and ours:
+            ratio = naive.cpu_us_per_robot_step / ours.cpu_us_per_robot_step
+            judge(f"efficiency_ratio ({source}) >= {least:g}", f"{ratio:.2f}", ratio >= least,
+                  FLOOR)  # fmt: skip
+    if odom := _row(rows, 100, 50, "odom"):
+        judge("odom, 100 robots at 50 Hz: >= 49 Hz answered",
+              f"{odom.rate_median_hz:.1f} Hz (min {odom.rate_min_hz:.1f})",
+              odom.rate_median_hz >= 49.0, PROFILE)  # fmt: skip
+    thousand = [r for r in rows if r.robots == 1000 and r.design == "aes"]
+    if thousand:
+        start = min(r.start_s for r in thousand)
+        judge("1000 robots: every one moving <= 15 s", f"{start:.0f} s", start <= 15.0, DISCOVERY)
+    if big := _row(rows, 1000, 20, "poses"):
+        share = big.rate_median_hz / big.rate
+        judge("1000 robots at 20 Hz: >= 95 % answered, RTF",
+              f"{100 * share:.0f} % (RTF {big.rtf:.3f})",
+              share >= 0.95 and big.rtf >= 0.95, FLOOR)  # fmt: skip
+    return lines
+
+
 def print_table(rows: list[Row]) -> None:
     cells = [HEADER, *(r.cells() for r in rows)]
     widths = [max(len(c[i]) for c in cells) for i in range(len(HEADER))]
@@ -457,6 +504,9 @@ def main(argv: list[str] | None = None) -> int:
             f"(answering {naive.rate_median_hz:.1f} of {key.rate:g} Hz): efficiency "
             f"{ratio:.2f}x (poses), {ratio_odom:.2f}x (odom)"
         )
+    if goals := goal_lines(rows):
+        print("\nissue #13's goals this run can judge:")
+        print("\n".join(goals))
     write_csv(rows, args.out / "bench_ros.csv")
     plot(rows, args.out / "bench_ros.png")
     (args.out / "physics.txt").write_text(line + "\n" + machine + "\n")

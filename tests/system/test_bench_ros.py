@@ -34,6 +34,12 @@ def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
     assert float(fields["cpu_per_ref"]) == pytest.approx(
         float(fields["cpu_us_per_robot_step"]) / ref, rel=0.01
     )
+    # issue #13's efficiency goals, judged in the output (met or not, the bound named)
+    goals = out.stdout.split("issue #13's goals this run can judge:\n")[1].splitlines()[:2]
+    assert [g.split(" >= ")[0] for g in goals] == [
+        "efficiency_ratio (poses)", "efficiency_ratio (odom)"
+    ]  # fmt: skip
+    assert all(g.endswith(" met") or "NOT met; bound: " in g for g in goals), goals
     rows = list(csv.DictReader((tmp_path / "bench_ros.csv").open()))
     assert [(r["source"], r["design"]) for r in rows] == [
         ("poses", "aes"), ("odom", "aes"), ("odom", "naive")
