@@ -12,7 +12,7 @@
 #   -s SETUP   linear | rotation | combined (default) or a scenario YAML file
 #   -n N       number of robots (default 16; 0 = the scenario's formation)
 #   -k K       number of robot host processes (default: as `aes-swarm launch`'s layout
-#              auto: one up to 200 robots and 5000 robot-steps/s, else one per core)
+#              auto: one up to 20000 robot-steps/s and on <= 2 cores, else one per core)
 #   -x SOURCE  neighbour source: poses (default) | odom
 #   -m MODE    kinematic (default) | dynamic
 #   -r X       real-time factor (default 1; 0 = as fast as possible)

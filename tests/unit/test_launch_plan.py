@@ -31,17 +31,20 @@ def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
 
 
 def test_auto_layout_uses_one_host_while_it_carries_the_load(tmp_path) -> None:
-    """auto: one robot host up to 200 robots and 5000 robot-steps per second (the
-    measured cheaper layout on two cores), one per core above either."""
+    """auto: one robot host up to 20000 robot-steps per second, and on two cores always
+    (the measured cheaper and faster-starting layout there); one per core above it on
+    a bigger machine."""
     from aes_ros.ros.launch.plan import resolved_layout
 
-    def layout(robots: int, hz: float) -> str:
+    def layout(robots: int, hz: float, cores: int) -> str:
         sc = scenario.load("combined", {"dt": 1.0 / hz}).with_robots(robots)
-        return resolved_layout(LaunchConfig(sc))
+        return resolved_layout(LaunchConfig(sc, cores=cores))
 
-    assert layout(100, 50) == "single" and layout(16, 20) == "single"
-    assert layout(101, 50) == "per-core"  # 5050 robot-steps per second
-    assert layout(400, 10) == "per-core"  # too many robots for one process's start
+    assert layout(100, 50, 8) == "single" and layout(16, 20, 8) == "single"
+    assert layout(400, 50, 8) == "single" and layout(1000, 20, 8) == "single"
+    assert layout(1001, 20, 8) == "per-core"  # 20020 robot-steps per second
+    assert layout(1000, 50, 2) == "single"  # two cores: one host answers more
+    assert layout(1000, 50, 4) == "per-core"
     sc = scenario.load("linear").with_robots(6)
     assert resolved_layout(LaunchConfig(sc, layout="per-core")) == "per-core"
     files = (tmp_path / "s.yaml", tmp_path / "r.yaml")

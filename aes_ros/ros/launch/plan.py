@@ -271,37 +271,38 @@ def supervisor_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec
     return ProcessSpec(names.SUPERVISOR_NODE, ["aes-supervisor", *ros_args(params)])
 
 
-#: ``auto`` runs all robots in one host process up to this many robots ...
-AUTO_SINGLE_ROBOTS = 200
-#: ... and robot-steps per second (robots × control rate).
-AUTO_SINGLE_STEPS = 5000.0
+#: ``auto`` runs all robots in one host process up to this many robot-steps per second
+#: (robots × control rate), and beyond it too on a machine of two cores or fewer.
+AUTO_SINGLE_STEPS = 20000.0
 
 
 def resolved_layout(config: LaunchConfig) -> str:
-    """The layout ``auto`` stands for: ``single`` while one process carries the robots
-    (≤ AUTO_SINGLE_ROBOTS robots and ≤ AUTO_SINGLE_STEPS robot-steps per second),
-    else ``per-core``; any other layout as it is.
-
-    Why: with two cores, the bridge and the supervisor already use part of the
-    second one, and every robot process reads each swarm message and pays its own
-    executor. 100 robots at 50 Hz: one host 203–217 µs of CPU per robot-step and
-    49.9–50 steps answered per second, two hosts 287–299 µs and 49.1–49.6
-    (bench/bench_ros.py, docs/performance.md). One host's Python runs on one core,
-    hence the limits; a host also creates its robot nodes one after the other.
-    """
+    """The layout ``auto`` stands for (:func:`auto_layout`); any other layout as it is."""
     if config.layout != "auto":
         return config.layout
-    return auto_layout(config.num_robots, config.scenario.dt)
+    return auto_layout(config.num_robots, config.scenario.dt, config.cores)
 
 
-def auto_layout(num_robots: int, dt: float) -> str:
+def auto_layout(num_robots: int, dt: float, cores: int | None = None) -> str:
     """``single`` or ``per-core``: what ``auto`` means for ``num_robots`` robots at a
-    control period of ``dt`` [s] (:func:`resolved_layout`; ``scripts/start_swarm.sh``
-    uses it for its default host count too)."""
+    control period of ``dt`` [s] on ``cores`` cores (None: this machine's)
+    (``scripts/start_swarm.sh`` uses it for its default host count too).
+
+    ``single`` up to AUTO_SINGLE_STEPS robot-steps per second, and always with two
+    cores or fewer; ``per-core`` above it on a bigger machine. Why: every extra robot
+    process reads every swarm message, runs its own executor, and must discover the
+    other processes' robots endpoint by endpoint. Two cores, same code, same hour
+    (bench/bench_ros.py, docs/performance.md), one host against two, answered rate
+    and CPU per robot-step: 400 robots at 50 Hz 49.9 Hz / 64 µs against 44.7 Hz /
+    100 µs; 1000 at 20 Hz 19.8 Hz / 72 µs against 12.3-12.9 Hz / 151-158 µs, and every
+    robot moving after 32 s against 62-80 s; 1000 at 50 Hz, more than either carries,
+    13.0 against 11.9 Hz. One host's Python runs on one core, which is about 20000
+    robot-steps per second here (400 at 50 Hz, 1000 at 20 Hz): beyond that, more cores
+    than two give the other hosts cores of their own (not measured here).
+    """
     steps = num_robots / dt
-    return (
-        "single" if num_robots <= AUTO_SINGLE_ROBOTS and steps <= AUTO_SINGLE_STEPS else "per-core"
-    )
+    cores = os.cpu_count() if cores is None else cores
+    return "single" if steps <= AUTO_SINGLE_STEPS or (cores or 1) <= 2 else "per-core"
 
 
 def robot_commands(
