@@ -14,8 +14,8 @@ avoid, with nothing else of the system running:
 2. ``publish``: a process with N publishers ``/mona_<i>/cmd_vel`` (the robots' QoS)
    publishing one raw Twist per robot per step at ``rate`` Hz; its CPU per message,
    DDS threads included.
-3. ``receive``: a second process with N raw subscriptions on an EventsExecutor (as
-   the bridge), decoding each Twist; its CPU per message.
+3. ``receive``: a second process with N raw subscriptions on an EventsExecutor with
+   the bridge's QoS (best effort, depth 1), decoding each Twist; its CPU per message.
 
 The sum is the floor; it leaves out the bridge's physics step, ``/swarm/poses``,
 ``/clock``, the supervisor and the executors' timers, which the real system also pays.
@@ -144,7 +144,7 @@ def reader(robots: int) -> dict[str, float]:
     from rclpy.task import Future
 
     from aes_ros.ros.cdr import decode_twist
-    from aes_ros.ros.qos import COMMAND_KEPT
+    from aes_ros.ros.qos import LATEST_COMMAND
 
     rclpy.init()
     node = Node("floor_reader", start_parameter_services=False)
@@ -162,7 +162,9 @@ def reader(robots: int) -> dict[str, float]:
         return on_cmd_vel
 
     for i in range(robots):
-        node.create_subscription(Twist, f"/mona_{i}/cmd_vel", callback(i), COMMAND_KEPT, raw=True)
+        node.create_subscription(
+            Twist, f"/mona_{i}/cmd_vel", callback(i), LATEST_COMMAND, raw=True
+        )  # the bridge's QoS: best effort, the newest command only
     print("ready", flush=True)
     executor = EventsExecutor()
     executor.add_node(node)
