@@ -125,6 +125,7 @@ class RobotNode(Node):
         self._force_pub = self.create_publisher(Vector3Stamped, names.AES_FORCE, COMMAND)
         self._force_encoder = Vector3StampedEncoder(names.WORLD_FRAME)
         self.counter = PublishCounter()
+        self._counts_logged = False
 
         self.controller = RobotController(
             self._settings(), scen.command, self._warn, self.get_logger().info
@@ -354,8 +355,14 @@ class RobotNode(Node):
             data = self._force_encoder.encode(stamp.sec, stamp.nanosec, force[0], force[1])
             self._force_pub.publish(data)
 
+    def log_counts(self) -> None:
+        """Log what this robot published (once; :class:`PublishCounter`)."""
+        if not self._counts_logged:
+            self._counts_logged = True
+            self.counter.log(self.get_namespace())
+
     def destroy_node(self) -> None:
-        self.counter.log(self.get_namespace())
+        self.log_counts()
         self._inputs.remove(self)
         super().destroy_node()
 

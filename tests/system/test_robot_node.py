@@ -360,3 +360,33 @@ def test_lockstep_with_supervisor_equals_offline_model(spawn, probe):
     assert len(centers) > 0  # the supervisor was publishing the live centroid
     assert np.max(np.abs(xy - ref_xy)) < 1e-9
     assert np.max(np.abs(yaw - ref_yaw)) < 1e-9
+
+
+def test_a_large_host_logs_every_robots_counts_before_it_tears_them_down(spawn, probe):
+    """At SIGINT a host logs every robot's published counts (what a recording is checked
+    against) before it destroys the robots one by one, which rmw makes slow in a large
+    process (~80 ms a robot at 300): a host SIGKILLed at the launch's stop timeout keeps
+    every count."""
+    n = 300
+    proc = spawn.start(
+        "aes-robot-host", "--ros-args", "-p", "scenario:=combined", "-p", f"num_robots:={n}",
+        name="host",
+    )  # fmt: skip
+    log = spawn.log(proc)
+    deadline = time.monotonic() + 120.0
+    while names.ROBOTS_READY not in log.read_text():
+        assert proc.poll() is None and time.monotonic() < deadline, log.read_text()[-2000:]
+        time.sleep(0.2)
+    proc.send_signal(signal.SIGINT)
+    counted: set[str] = set()
+    deadline = time.monotonic() + 10.0
+    while len(counted) < n and time.monotonic() < deadline:
+        time.sleep(0.2)
+        counted = {
+            line.split("]: ", 1)[1].split(":", 1)[0]
+            for line in log.read_text().splitlines()
+            if "[published]: /mona_" in line
+        }
+    assert counted == {f"/mona_{i}" for i in range(n)}, f"{len(counted)} of {n} robots"
+    proc.kill()  # what the launcher does at its stop timeout
+    proc.wait(10)

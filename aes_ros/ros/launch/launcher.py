@@ -463,8 +463,11 @@ class Launcher:
                 f"launch: exit codes other than 0 (-N: ended by signal N before its node "
                 f"was up): {listed}; logs in {self.procs.log_dir}"
             )
-        else:
+        elif not self.killed:
             self.say(f"launch: all {len(self.exit_codes)} processes stopped cleanly")
+        else:
+            clean = len(self.exit_codes) - len(self.killed)
+            self.say(f"launch: {clean} of {len(self.exit_codes)} processes stopped cleanly")
         return self.killed
 
     def samples(self, t_end: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
