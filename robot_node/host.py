@@ -76,7 +76,7 @@ class RobotHostNode(Node):
         reason = rp.choice_error("neighbor_source", source, names.NEIGHBOR_SOURCES)
         if reason is not None:
             raise ParameterError(reason)
-        self.inputs = SwarmInputs(self)
+        self.inputs = SwarmInputs(self, scen.command)
         shared = [
             Parameter("scenario", Parameter.Type.STRING, self.get_parameter("scenario").value),
             Parameter("num_robots", Parameter.Type.INTEGER, self.get_parameter("num_robots").value),

@@ -127,12 +127,13 @@ class RobotNode(Node):
         self.counter = PublishCounter()
         self._counts_logged = False
 
-        self.controller = RobotController(
-            self._settings(), scen.command, self._warn, self.get_logger().info
-        )
-        self._alive_subs: dict[int, Any] = {}
         alone = inputs is None
-        self._inputs = SwarmInputs(self) if alone else inputs
+        self._inputs = SwarmInputs(self, scen.command) if alone else inputs
+        self.controller = RobotController(
+            self._settings(), scen.command, self._warn, self.get_logger().info,
+            center=self._inputs.center,
+        )  # fmt: skip
+        self._alive_subs: dict[int, Any] = {}
         self._local_version = -1
         self._sync_subscriptions()
         self._inputs.add(self)

@@ -28,13 +28,14 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from aes_ros.model import RobotInput, evaluate_robots
+from aes_ros.model import RobotInput, SwarmCommand, evaluate_robots
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_odometry, decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, SENSOR
+from robot_node.controller import rotation_center_rule
 
 if TYPE_CHECKING:
     from robot_node.node import RobotNode
@@ -47,9 +48,13 @@ ODOM_WAIT = 0.004
 class SwarmInputs:
     """The swarm inputs of the robots in :attr:`robots`, subscribed on ``node``."""
 
-    def __init__(self, node: Node) -> None:
+    def __init__(self, node: Node, command: SwarmCommand) -> None:
         self.node = node
         self.robots: list[RobotNode] = []
+        #: The rotation centre rule of every robot here: they all hear the same poses
+        #: and centres. Fed once per message instead of once per robot: a 1000-robot
+        #: host at 20 Hz 100 / 98 % -> 88 / 89 % of a core (bench_ros, two A/B pairs).
+        self.center = rotation_center_rule(command)
         #: Changes whenever a robot joins, leaves or changes its id or source.
         self.version = 0
         self._warn = ThrottledWarnings(node.get_logger())
@@ -174,6 +179,7 @@ class SwarmInputs:
         centroid = xy.mean(axis=0) if len(xy) else np.zeros(2)
         stamp = Time(sec=sec, nanosec=nanosec)
         stamp_ns = stamp_to_ns(stamp)
+        self.center.on_poses(stamp_ns, centroid)
         acting, inputs = [], []
         for robot in robots:
             job = robot.poses_input(stamp_ns, xy, yaw, centroid)
@@ -228,9 +234,7 @@ class SwarmInputs:
         except BadMessageError as exc:
             self._warn(f"dropped /swarm/rotation_center: {exc}")
             return
-        stamp_ns = stamp_to_ns(msg.header.stamp)
-        for robot in self.robots:
-            robot.controller.center.on_center(stamp_ns, point)
+        self.center.on_center(stamp_to_ns(msg.header.stamp), point)
 
     def on_enabled(self, msg: Bool) -> None:
         for robot in self.robots:
