@@ -59,6 +59,8 @@ class SwarmInputs:
         self.version = 0
         self._warn = ThrottledWarnings(node.get_logger())
         self._poses_sub = None
+        #: The robots of :attr:`robots` in the ``poses`` source (the others read odometry).
+        self._poses_robots: list[RobotNode] = []
         self._odom_robots = 0
         self._odom_pending: dict[RobotNode, tuple[Time, RobotInput]] = {}
         self._odom_since = 0.0
@@ -79,27 +81,32 @@ class SwarmInputs:
     # --- the robots of this process -------------------------------------------------
 
     def add(self, robot: RobotNode) -> None:
-        # Counted for the new robot alone: recounting all was quadratic in a host
+        # Sorted in for the new robot alone: re-sorting all was quadratic in a host
         # adding its robots one by one.
         self.robots.append(robot)
-        self._update(self._odom_robots + (not robot.uses_poses))
+        if robot.uses_poses:
+            self._poses_robots.append(robot)
+        self._update()
 
     def remove(self, robot: RobotNode) -> None:
         self.listen_odom(robot, {})
         if robot in self.robots:
             self.robots.remove(robot)
-            self._update(self._odom_robots - (not robot.uses_poses))
+            if robot in self._poses_robots:
+                self._poses_robots.remove(robot)
+            self._update()
 
     def changed(self) -> None:
         """A robot changed its id, neighbour source or neighbours: re-check liveness
         subscriptions (lazily, by :attr:`version`) and whether ``/swarm/poses`` is needed."""
-        self._update(sum(1 for robot in self.robots if not robot.uses_poses))
+        self._poses_robots = [robot for robot in self.robots if robot.uses_poses]
+        self._update()
 
-    def _update(self, odom_robots: int) -> None:
-        """As :meth:`changed`, with ``odom_robots`` of :attr:`robots` in the ``odom`` source."""
+    def _update(self) -> None:
+        """After :attr:`robots` or their sources changed (``_poses_robots`` up to date)."""
         self.version += 1
-        self._odom_robots = odom_robots
-        wanted = odom_robots < len(self.robots)  # some robot reads /swarm/poses
+        self._odom_robots = len(self.robots) - len(self._poses_robots)
+        wanted = bool(self._poses_robots)  # some robot reads /swarm/poses
         if wanted and self._poses_sub is None:
             self._poses_sub = self.node.create_subscription(
                 PoseArray, names.POSES, self.on_poses, SENSOR, raw=True
@@ -168,7 +175,7 @@ class SwarmInputs:
 
     def on_poses(self, data: bytes) -> None:
         """Decode ``/swarm/poses`` once; every robot using it acts on it."""
-        robots = [robot for robot in self.robots if robot.uses_poses]
+        robots = self._poses_robots
         if not robots:
             return
         try:
