@@ -1,4 +1,5 @@
-"""Which rotation centre x_c (E3) a robot uses (pure).
+"""Which rotation centre x_c (E3) a robot uses (pure). One rule serves all robots of a
+process (:class:`robot_node.swarm_inputs.SwarmInputs`), which hear the same messages.
 
 The supervisor publishes ``/swarm/rotation_center``: a fixed point, or the live
 centroid of ``/swarm/poses`` stamped with the poses' stamp. A robot that
@@ -20,7 +21,7 @@ CENTROID_MEMORY = 8
 
 
 class RotationCenterRule:
-    """The rotation centre of one robot, from the supervisor's messages and the poses.
+    """The rotation centre of a robot, from the supervisor's messages and the poses.
 
     Parameters
     ----------
