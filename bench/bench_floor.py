@@ -60,10 +60,12 @@ def control_us(robots: int, rate: float, steps: int) -> float:
     from aes_ros.model import evaluate_robots
     from aes_ros.ros.cdr import PoseArrayEncoder, decode_pose_array, encode_twist
     from robot_node.controller import RobotController, RobotSettings
+    from robot_node.rotation_center import rotation_center_rule
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     _, table, rest = sc.sheet()
     controllers = []
+    center = rotation_center_rule(sc.command)  # one per process, as in SwarmInputs
     for i in range(robots):
         keep = table[i] >= 0
         settings = RobotSettings(
@@ -76,7 +78,7 @@ def control_us(robots: int, rate: float, steps: int) -> float:
             seed=0,
             neighbor_source="poses",
         )
-        controllers.append(RobotController(settings, sc.command, print, print))
+        controllers.append(RobotController(settings, sc.command, print, print, center=center))
     positions, headings = sc.initial_state(0)
     encoder = PoseArrayEncoder(robots)
     rng = np.random.default_rng(0)
@@ -87,6 +89,7 @@ def control_us(robots: int, rate: float, steps: int) -> float:
         data = encoder.encode(stamp_ns // 10**9, stamp_ns % 10**9, positions, headings)
         _, _, xy, yaw = decode_pose_array(data)
         centroid = xy.mean(axis=0)
+        center.on_poses(stamp_ns, centroid)
         inputs = [c.poses_input(stamp_ns, xy, yaw, centroid) for c in controllers]
         for result in evaluate_robots(inputs):
             encode_twist(result.linear, result.angular)

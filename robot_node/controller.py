@@ -66,12 +66,6 @@ def sheet_error(robot_id: int, neighbors: list[int], rest_lengths: list[float]) 
     return None
 
 
-def rotation_center_rule(command: SwarmCommand) -> RotationCenterRule:
-    """The rule of a robot that has heard nothing yet: the command's fixed centre, or
-    the live centroid when it has none."""
-    return RotationCenterRule(None if command.center is None else np.asarray(command.center))
-
-
 class RobotController:
     """Inputs of the control law of one robot, from its messages.
 
@@ -81,9 +75,9 @@ class RobotController:
     command : the swarm command until the supervisor speaks (the scenario's).
     warn : called with a warning about an input that was dropped or degraded.
     info : called with a note (a neighbour heard again).
-    center : the rotation-centre rule shared by the robots of a process, which feeds it
-        every poses message and centre once (:class:`robot_node.swarm_inputs.SwarmInputs`);
-        None: a rule of this robot's own, fed by :meth:`poses_input`.
+    center : the rotation-centre rule x_c is read from; whoever hands the robot its
+        messages feeds it (:class:`robot_node.swarm_inputs.SwarmInputs`: one rule for the
+        robots of a process, fed once per poses and centre message).
     """
 
     def __init__(
@@ -92,14 +86,14 @@ class RobotController:
         command: SwarmCommand,
         warn: Callable[[str], object] = lambda _text: None,
         info: Callable[[str], object] = lambda _text: None,
-        center: RotationCenterRule | None = None,
+        *,
+        center: RotationCenterRule,
     ) -> None:
         self._warn, self._info = warn, info
         self.direction = tuple(command.direction)
         self.omega = float(command.omega)
         self.enabled = True
-        self._own_center = center is None
-        self.center = rotation_center_rule(command) if center is None else center
+        self.center = center
         self.liveness = NeighborLiveness(0)
         self.dt = DEFAULT_DT
         self._last_stamp: int | None = None
@@ -166,8 +160,6 @@ class RobotController:
         source is odom, or the message has no pose for this robot)."""
         if self._settings.neighbor_source != "poses":
             return None
-        if self._own_center:
-            self.center.on_poses(stamp_ns, centroid)
         i, n = self._settings.robot_id, len(positions)
         if i >= n:
             self._warn(f"dropped /swarm/poses: {n} poses, no pose for robot_id {i}")

@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from aes_ros.model import SwarmCommand
+
 #: A published centre this close [m] to the centroid of the poses with the same
 #: stamp means the supervisor follows the live centroid.
 CENTROID_MATCH_TOL = 1e-9
@@ -77,3 +79,9 @@ def _same_point(a: np.ndarray, b: np.ndarray | None) -> bool:
         and abs(a[0] - b[0]) <= CENTROID_MATCH_TOL
         and abs(a[1] - b[1]) <= CENTROID_MATCH_TOL
     )
+
+
+def rotation_center_rule(command: SwarmCommand) -> RotationCenterRule:
+    """The rule before anything is heard: the command's fixed centre, or the live
+    centroid when it has none."""
+    return RotationCenterRule(None if command.center is None else np.asarray(command.center))

@@ -35,7 +35,7 @@ from aes_ros.ros.cdr import decode_odometry, decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, SENSOR
-from robot_node.controller import rotation_center_rule
+from robot_node.rotation_center import rotation_center_rule
 
 if TYPE_CHECKING:
     from robot_node.node import RobotNode

@@ -12,7 +12,7 @@ import pytest
 from aes_ros.model import Gains, SwarmCommand, evaluate_robots, robot_command
 from robot_node.controller import RobotController, RobotSettings, sheet_error
 from robot_node.liveness import NeighborLiveness
-from robot_node.rotation_center import RotationCenterRule
+from robot_node.rotation_center import RotationCenterRule, rotation_center_rule
 
 S = 1_000_000_000  # ns per second
 NOISE_OFF = Gains(d_r=0.0, d_theta=0.0)
@@ -42,11 +42,13 @@ class Log:
 
 def controller(command: SwarmCommand | None = None, **changes) -> tuple[RobotController, Log]:
     log = Log()
+    command = command or SwarmCommand((-1.0, 0.0), 0.0, None)
     ctl = RobotController(
         settings(**changes),
-        command or SwarmCommand((-1.0, 0.0), 0.0, None),
+        command,
         log.warnings.append,
         log.notes.append,
+        center=rotation_center_rule(command),
     )
     return ctl, log
 
