@@ -21,11 +21,11 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import shutil
 import subprocess
-import sys
 import time
 from pathlib import Path
+
+from aes_ros.ros.launch.plan import LaunchError
 
 #: Where Fast DDS keeps its shared-memory files (Linux).
 SHM_DIR = Path("/dev/shm")
@@ -100,9 +100,15 @@ def abandoned_ports(domain: int) -> tuple[list[Path], list[int]]:
 
 
 def _fastdds_tool() -> str | None:
-    """``fastdds`` of this environment (next to the interpreter), else from PATH."""
-    search = os.pathsep.join([str(Path(sys.executable).parent), os.environ.get("PATH", "")])
-    return shutil.which("fastdds", path=search)
+    """``fastdds`` of this environment (next to the interpreter), else from PATH; None
+    if there is none."""
+    # Imported here: processes imports this module (ProcessSet.stop_all cleans up).
+    from aes_ros.ros.launch.processes import executable
+
+    try:
+        return executable("fastdds")
+    except LaunchError:
+        return None
 
 
 def clean_shared_memory(domain: int | None = None, settle: float = 2.0) -> None:
