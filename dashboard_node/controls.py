@@ -2,8 +2,11 @@
 
 A control message is one JSON object (at most :data:`MAX_MESSAGE_BYTES`):
 
-- ``{"type": "drive", "direction": [x, y], "omega": w}``: the swarm command
-  (``/swarm/cmd``); v_d and ω within the ranges of ``direction`` and ``omega``;
+- ``{"type": "drive", "direction": [x, y]}``, ``{"type": "drive", "omega": w}`` or
+  both: the swarm command, set as the supervisor's ``desired_direction`` and
+  ``rotation_rate`` parameters (one atomic set of only the fields given, so that
+  steering the direction never resets ω to a value the page last saw, and the
+  other way round); v_d and ω within the ranges of ``direction`` and ``omega``;
 - ``{"type": "enable", "enabled": true}``: ``/swarm/enable``;
 - ``{"type": "gain", "name": "alpha", "value": 0.1}``: a parameter set on every
   robot node and the supervisor (one of :data:`dashboard_node.view.GAIN_NAMES`;
@@ -37,8 +40,10 @@ class ControlError(ValueError):
 
 @dataclass(frozen=True)
 class Drive:
-    direction: tuple[float, float]
-    omega: float
+    """The swarm command's parts a viewer changes; None: leave that part as it is."""
+
+    direction: tuple[float, float] | None = None
+    omega: float | None = None
 
 
 @dataclass(frozen=True)
@@ -59,7 +64,7 @@ class SimAction:
 
 Control = Drive | Enable | SetGain | SimAction
 _FIELDS = {
-    "drive": {"direction", "omega"},
+    "drive": {"direction", "omega"},  # either or both
     "enable": {"enabled"},
     "gain": {"name", "value"},
     "sim": {"action"},
@@ -81,6 +86,8 @@ def parse_control(text: str | bytes) -> Control:
         raise ControlError(f"type: {kind!r} is not one of {', '.join(_FIELDS)}")
     extra = set(message) - _FIELDS[kind] - {"type"}
     missing = _FIELDS[kind] - set(message)
+    if kind == "drive" and missing != _FIELDS[kind]:
+        missing = set()  # one of the two is enough
     if extra or missing:
         raise ControlError(
             f"{kind}: fields {sorted(missing)} missing, {sorted(extra)} unknown"
@@ -89,14 +96,7 @@ def parse_control(text: str | bytes) -> Control:
             f"{', '.join(sorted(missing or extra))}"
         )
     if kind == "drive":
-        direction = message["direction"]
-        if not (isinstance(direction, list) and len(direction) == 2):
-            raise ControlError("direction: need two numbers [x, y]")
-        x, y = (_number("direction", v) for v in direction)
-        omega = _number("omega", message["omega"])
-        _in_range("direction", [x, y])
-        _in_range("omega", omega)
-        return Drive((x, y), omega)
+        return _drive(message)
     if kind == "enable":
         if not isinstance(message["enabled"], bool):
             raise ControlError("enabled: need true or false")
@@ -110,6 +110,21 @@ def parse_control(text: str | bytes) -> Control:
     if action not in SIM_ACTIONS:
         raise ControlError(f"action: {action!r} is not one of {', '.join(SIM_ACTIONS)}")
     return SimAction(action)
+
+
+def _drive(message: dict[str, Any]) -> Drive:
+    direction = omega = None
+    if "direction" in message:
+        value = message["direction"]
+        if not (isinstance(value, list) and len(value) == 2):
+            raise ControlError("direction: need two numbers [x, y]")
+        x, y = (_number("direction", v) for v in value)
+        _in_range("direction", [x, y])
+        direction = (x, y)
+    if "omega" in message:
+        omega = _number("omega", message["omega"])
+        _in_range("omega", omega)
+    return Drive(direction, omega)
 
 
 def _no_constant(name: str) -> Any:

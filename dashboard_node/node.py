@@ -4,11 +4,13 @@ the same public interface as the CLI and ``ros2`` (SPEC §7).
 It reads ``/swarm/poses``, the supervisor's command and metrics, ``/clock`` and the
 bridge's ``/diagnostics`` (which robots are silent) into a
 :class:`dashboard_node.view.SwarmView`;
-publishes ``/swarm/cmd`` and, while anyone subscribes, ``/swarm/markers``; calls
-``/swarm/enable``, ``/sim/pause``, ``/sim/reset`` and the robots' and the
-supervisor's ``set_parameters``. The web server (:mod:`dashboard_node.server`)
-runs in another thread; it hands control requests over with :meth:`DashboardNode.submit`,
-and they run in the node's own thread.
+publishes ``/swarm/markers`` while anyone subscribes; calls ``/swarm/enable``,
+``/sim/pause``, ``/sim/reset``, the robots' and the supervisor's ``set_parameters``
+(gains) and the supervisor's ``set_parameters_atomically`` (the swarm command: only
+the part a viewer changed, so that the other part stays the swarm's own). The web
+server (:mod:`dashboard_node.server`) runs in another thread; it hands control
+requests over with :meth:`DashboardNode.submit`, and they run in the node's own
+thread.
 
 Start it (or ``aes-swarm dashboard``, or ``aes-swarm launch --dashboard``)::
 
@@ -27,8 +29,8 @@ from pathlib import Path
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PointStamped, PoseArray, Twist, TwistStamped
-from rcl_interfaces.srv import SetParameters
+from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
+from rcl_interfaces.srv import SetParameters, SetParametersAtomically
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -42,7 +44,6 @@ from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import (
     BadMessageError,
-    drive_to_twist,
     point_to_array,
     stamp_to_ns,
     twist_to_drive,
@@ -50,7 +51,7 @@ from aes_ros.ros.conversions import (
 from aes_ros.ros.diagnostics import silent_robots
 from aes_ros.ros.markers import swarm_markers
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import COMMAND, DISPLAY, LATCHED, SENSOR
+from aes_ros.ros.qos import DISPLAY, LATCHED, SENSOR
 from dashboard_node.controls import Control, Drive, Enable, SetGain, SimAction
 from dashboard_node.view import SwarmView
 
@@ -66,8 +67,9 @@ class DashboardNode(Node):
     empty: one is made when ``host`` is not a loopback address); ``frame_rate``
     [Hz] (default 15) of the page's updates; ``label``: the run's name in the status
     line (default: the scenario file's name); ``markers_rate`` [Hz] (default 10,
-    at most 10) of ``/swarm/markers``; ``scenario`` and ``num_robots``: the sheet
-    it draws (an n-robot grid of the scenario when the poses have n robots).
+    at most 10 and at most ``frame_rate``: both come from one frame) of
+    ``/swarm/markers``; ``scenario`` and ``num_robots``: the sheet it draws (an
+    n-robot grid of the scenario when the poses have n robots).
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -123,9 +125,14 @@ class DashboardNode(Node):
         self.create_subscription(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
         self.create_subscription(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
 
-        self.cmd_pub = self.create_publisher(Twist, names.CMD, COMMAND)
         self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY)
         self.markers_published = 0
+        self.frames_made = 0
+        self._markers_period = 1.0 / self.get_parameter("markers_rate").value
+        self._markers_due = 0.0
+        self.drive_client = self.create_client(
+            SetParametersAtomically, f"/{names.SUPERVISOR_NODE}/set_parameters_atomically"
+        )
         self.enable_client = self.create_client(SetBool, names.ENABLE)
         self.pause_client = self.create_client(SetBool, names.SIM_PAUSE)
         self.reset_client = self.create_client(Trigger, names.SIM_RESET)
@@ -134,8 +141,6 @@ class DashboardNode(Node):
         # no guard conditions to wake it; 20 Hz polling is quick enough for a click.)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(0.05, self.on_requests, clock=steady)
-        period = 1.0 / self.get_parameter("markers_rate").value
-        self.create_timer(period, self.on_markers, clock=steady)
 
     # --- the swarm ------------------------------------------------------------------
 
@@ -181,16 +186,26 @@ class DashboardNode(Node):
     def on_clock(self, msg: ClockMsg) -> None:
         self._locked(self.view.on_clock, stamp_to_ns(msg.clock) * 1e-9, time.monotonic())
 
-    def on_markers(self) -> None:
-        """``/swarm/markers``, only while someone subscribes (RViz2, Foxglove, a bag)."""
-        if not self.markers_pub.get_subscription_count():
-            return
+    def frame_tick(self, viewers: bool, now: float) -> dict[str, Any] | None:
+        """One frame for everyone who wants one this tick, made once: the page's
+        viewers (``viewers``) and ``/swarm/markers`` (only while someone subscribes,
+        RViz2, Foxglove or a bag, at most ``markers_rate``). None when nobody does.
+        Called by the web server at ``frame_rate`` (steady time ``now`` [s])."""
+        markers = now >= self._markers_due and self.markers_pub.get_subscription_count() > 0
+        if not (viewers or markers):
+            return None
         with self.lock:
             frame = self.view.frame()
-            springs = self.view.pairs.tolist()
-        if "x" in frame:
+            springs = self.view.pairs.tolist() if markers else []
+        self.frames_made += 1
+        if markers and "x" in frame:
+            # the next one a period after this one was due, so that a 15 Hz tick
+            # keeps 10 Hz on average instead of falling back to 7.5 Hz
+            due = self._markers_due + self._markers_period
+            self._markers_due = due if due > now else now + self._markers_period
             self.markers_pub.publish(swarm_markers(frame, springs, self.get_clock().now().to_msg()))
             self.markers_published += 1
+        return frame
 
     # --- control requests -------------------------------------------------------------
 
@@ -213,10 +228,7 @@ class DashboardNode(Node):
 
     def _run(self, control: Control, future: concurrent.futures.Future) -> None:
         if isinstance(control, Drive):
-            self.cmd_pub.publish(drive_to_twist(control.direction, control.omega))
-            future.set_result(
-                (True, f"/swarm/cmd: direction {control.direction}, omega {control.omega:g} rad/s")
-            )
+            self._drive(control, future)
         elif isinstance(control, Enable):
             self._call(self.enable_client, SetBool.Request(data=control.enabled), future)
         elif isinstance(control, SimAction) and control.action == "reset":
@@ -226,14 +238,43 @@ class DashboardNode(Node):
         elif isinstance(control, SetGain):
             self._set_everywhere(control, future)
 
-    def _call(self, client: Any, request: Any, future: concurrent.futures.Future) -> None:
+    def _drive(self, control: Drive, future: concurrent.futures.Future) -> None:
+        """Set only the parts of the swarm command the viewer changed, as the
+        supervisor's parameters in one atomic set (``ros2 param set`` would do the
+        same): the other part stays whatever the swarm has now, whoever set it."""
+        parameters = []
+        if control.direction is not None:
+            parameters.append(Parameter("desired_direction", value=list(control.direction)))
+        if control.omega is not None:
+            parameters.append(Parameter("rotation_rate", value=control.omega))
+        said = ", ".join(f"{p.name} = {p.value}" for p in parameters)
+        request = SetParametersAtomically.Request(
+            parameters=[p.to_parameter_msg() for p in parameters]
+        )
+
+        def answer(result: Any) -> tuple[bool, str]:
+            ok, reason = result.successful, result.reason
+            return ok, f"supervisor: {said}" if ok else f"supervisor refused {said}: {reason}"
+
+        self._call(self.drive_client, request, future, answer)
+
+    def _call(
+        self,
+        client: Any,
+        request: Any,
+        future: concurrent.futures.Future,
+        answer: Callable[[Any], tuple[bool, str]] | None = None,
+    ) -> None:
         if not client.service_is_ready():
             future.set_result((False, f"{client.srv_name}: nobody offers it"))
             return
         call = client.call_async(request)
-        call.add_done_callback(
-            lambda done: future.set_result((done.result().success, done.result().message))
-        )
+        if answer is None:
+            call.add_done_callback(
+                lambda done: future.set_result((done.result().success, done.result().message))
+            )
+        else:
+            call.add_done_callback(lambda done: future.set_result(answer(done.result().result)))
 
     def _set_everywhere(self, control: SetGain, future: concurrent.futures.Future) -> None:
         """Set a gain on every robot node and the supervisor; the result counts the

@@ -148,11 +148,14 @@ class Dashboard:
         sending: dict[web.WebSocketResponse, asyncio.Task] = {}
         while not stop.is_set():
             await asyncio.sleep(period)
-            if not self.viewers:
-                continue  # nobody watches: no frame to make
-            with self.node.lock:
-                frame = self.node.view.frame()
-                sheet = self.node.view.sheet_message() if frame["n"] != n else None
+            # one frame for the viewers and /swarm/markers; none when nobody wants one
+            frame = self.node.frame_tick(bool(self.viewers), time.monotonic())
+            if frame is None or not self.viewers:
+                continue
+            sheet = None
+            if frame["n"] != n:
+                with self.node.lock:
+                    sheet = self.node.view.sheet_message()
             n = frame["n"]
             text = json.dumps(frame)
             for ws in list(self.viewers):
@@ -189,7 +192,8 @@ class Dashboard:
             await runner.cleanup()
             self.node.get_logger().info(
                 f"stopped: {self.frames_sent} frames sent, "
-                f"{self.node.markers_published} marker arrays published"
+                f"{self.node.markers_published} marker arrays published, "
+                f"{self.node.frames_made} frames made"
             )
 
 

@@ -15,8 +15,10 @@ const state = {
   drawn: null,             // what the last picture showed: {robots, springs, t}
   history: [],            // [t, psi, psi_heading, F]
   view: { cx: 0, cy: 0, scale: 300, follow: true },
-  direction: [0, 0],      // the dial: the swarm's command until the user steers
-  steered: false,
+  command: null,          // the swarm's command {direction, omega}, from every frame
+  pending: {},             // what this viewer chose and the swarm does not show yet
+  dragging: null,          // the direction under the pointer while the dial is dragged
+  sent: [],                // the controls awaiting their result, oldest first
   connected: false,
   results: [],
 };
@@ -35,6 +37,7 @@ function connect() {
   socket.onopen = () => { state.connected = true; };
   socket.onclose = () => {
     state.connected = false;
+    state.sent = [];
     status("disconnected: retrying…");
     setTimeout(connect, 1000);
   };
@@ -44,9 +47,11 @@ function connect() {
 function send(message) {
   if (!socket || socket.readyState !== WebSocket.OPEN) {
     note(false, "not connected");
-    return;
+    return false;
   }
   socket.send(JSON.stringify(message));
+  state.sent.push(message);  // the server answers each message once, in order
+  return true;
 }
 
 function receive(message) {
@@ -64,15 +69,56 @@ function receive(message) {
       state.view.cy = message.centroid[1];
     }
     if (!state.fitted && message.x) fit(message);
-    if (!state.steered && message.direction) state.direction = message.direction;
+    if (message.direction) settle({ direction: message.direction, omega: message.omega });
     for (const [name, value] of Object.entries(message.gains || {})) {
       const field = $(`gain-${name}`);
       if (field) field.placeholder = value == null ? "" : String(value);
     }
     schedule();
   } else if (message.type === "result") {
+    const control = state.sent.shift();
+    if (!message.ok && control && control.type === "drive") forget(control);
     note(message.ok, message.message);
   }
+}
+
+// The swarm's command, whoever set it (this page, another viewer, ros2 topic pub):
+// the page always shows it. A choice of this viewer stays "pending" until the
+// swarm's command shows it; one the swarm never takes is dropped after PENDING_S.
+const PENDING_S = 10;
+const same = (a, b) => Math.abs(a - b) < 1e-3;
+
+function settle(command) {
+  state.command = command;
+  const p = state.pending;
+  const now = performance.now() / 1000;
+  if (p.direction && same(p.direction[0], command.direction[0]) &&
+      same(p.direction[1], command.direction[1])) delete p.direction;
+  if (p.omega != null && command.omega != null && same(p.omega, command.omega)) delete p.omega;
+  if ((p.direction || p.omega != null) && now - p.at > PENDING_S) {
+    note(false, "the swarm did not take the command; it shows what it does");
+    state.pending = {};
+  }
+  showOmega();
+}
+
+function forget(control) {
+  if (control.direction) delete state.pending.direction;
+  if (control.omega != null) delete state.pending.omega;
+  showOmega();
+}
+
+function showOmega() {
+  const slider = $("omega");
+  const omega = state.command ? state.command.omega : null;
+  if (!slider.matches(":active") && state.pending.omega == null && omega != null) {
+    slider.value = omega;
+  }
+  $("omega-value").textContent = fmt(omega);
+  const p = state.pending, parts = [];
+  if (p.direction) parts.push(`v_d → (${fmt(p.direction[0])}, ${fmt(p.direction[1])})`);
+  if (p.omega != null) parts.push(`ω → ${fmt(p.omega)} rad/s`);
+  $("pending").textContent = parts.length ? `pending: ${parts.join(", ")}` : "";
 }
 
 function remember(frame) {
@@ -248,11 +294,17 @@ function drawDial() {
   ctx.stroke();
   ctx.fillStyle = "#607d8b";
   ctx.fillText("N", c - 3, 12); ctx.fillText("E", 2 * c - 10, c + 4);
-  const f = state.frame;
-  if (f && f.direction) arrow(ctx, c, c, R * f.direction[0], -R * f.direction[1], "#90caf9");
-  arrow(ctx, c, c, R * state.direction[0], -R * state.direction[1], "#1565c0");
-  $("dir-x").textContent = fmt(state.direction[0]);
-  $("dir-y").textContent = fmt(state.direction[1]);
+  // the swarm's command, solid; this viewer's choice not yet taken, dashed
+  const chosen = state.dragging || state.pending.direction;
+  if (chosen) {
+    ctx.setLineDash([4, 3]);
+    arrow(ctx, c, c, R * chosen[0], -R * chosen[1], "#ef6c00");
+    ctx.setLineDash([]);
+  }
+  const command = state.command ? state.command.direction : null;
+  if (command) arrow(ctx, c, c, R * command[0], -R * command[1], "#1565c0");
+  $("dir-x").textContent = fmt(command && command[0]);
+  $("dir-y").textContent = fmt(command && command[1]);
 }
 
 function drawChart(id, column, label, range) {
@@ -317,19 +369,23 @@ function note(ok, text) {
 // --------------------------------------------------------------------- controls
 
 function setDirectionFrom(event) {
-  state.steered = true;  // from now on the dial shows what the user chose
   const canvas = $("dial");
   const rect = canvas.getBoundingClientRect();
   const R = canvas.width / 2 - 8, c = canvas.width / 2;
   let x = (event.clientX - rect.left - c) / R, y = -(event.clientY - rect.top - c) / R;
   const len = Math.hypot(x, y);
   if (len > 1) { x /= len; y /= len; }
-  state.direction = [Math.round(x * 100) / 100, Math.round(y * 100) / 100];
+  state.dragging = [Math.round(x * 100) / 100, Math.round(y * 100) / 100];
   drawDial();
 }
 
-function sendDrive() {
-  send({ type: "drive", direction: state.direction, omega: Number($("omega").value) });
+// A drive message with only what the viewer changed: the direction or ω.
+function drive(change) {
+  const control = { type: "drive", ...change };
+  if (!send(control)) return;
+  Object.assign(state.pending, change, { at: performance.now() / 1000 });
+  showOmega();
+  schedule();
 }
 
 function setup() {
@@ -337,14 +393,18 @@ function setup() {
   let dragging = false;
   dial.addEventListener("pointerdown", (e) => { dragging = true; setDirectionFrom(e); });
   dial.addEventListener("pointermove", (e) => dragging && setDirectionFrom(e));
-  dial.addEventListener("pointerup", () => { dragging = false; sendDrive(); });
-  $("stop-drive").addEventListener("click", () => {
-    state.steered = true;
-    state.direction = [0, 0];
-    sendDrive();
+  dial.addEventListener("pointerup", () => {
+    if (!dragging) return;
+    dragging = false;
+    const direction = state.dragging;
+    state.dragging = null;
+    drive({ direction });
   });
-  $("omega").addEventListener("input", () => { $("omega-value").textContent = $("omega").value; });
-  $("omega").addEventListener("change", sendDrive);
+  $("stop-drive").addEventListener("click", () => drive({ direction: [0, 0] }));
+  $("omega").addEventListener("input", () => {
+    $("pending").textContent = `ω → ${fmt($("omega").value)} rad/s (release to send)`;
+  });
+  $("omega").addEventListener("change", () => drive({ omega: Number($("omega").value) }));
   $("enable").addEventListener("click", () =>
     send({ type: "enable", enabled: state.frame ? state.frame.enabled === false : false }));
   for (const action of ["pause", "resume", "reset"]) {

@@ -30,11 +30,13 @@ def dashboard_url(spawn: Processes, proc: subprocess.Popen, timeout: float = 60.
     return match.group(1)
 
 
-def launch_with_dashboard(spawn: Processes, out: Path, robots: int = 9, *extra: str) -> tuple:
-    """``aes-swarm launch --dashboard 0`` of ``robots`` robots (linear setup, until
+def launch_with_dashboard(
+    spawn: Processes, out: Path, robots: int = 9, *extra: str, setup: str = "linear"
+) -> tuple:
+    """``aes-swarm launch --dashboard 0`` of ``robots`` robots (``setup``, until
     stopped); returns the launcher's process and the dashboard's URL."""
     launcher = spawn.start(
-        "aes-swarm", "launch", "--setup", "linear", "--robots", str(robots), "--duration", "0",
+        "aes-swarm", "launch", "--setup", setup, "--robots", str(robots), "--duration", "0",
         "--dashboard", "0", "--out", str(out), *extra, name="launch",
     )  # fmt: skip
     return launcher, dashboard_url(spawn, launcher)

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import Twist, Vector3
 from helpers import browser
 from helpers.dashboard import dashboard_url, launch_with_dashboard, local
 
@@ -112,6 +112,69 @@ def test_the_page_shows_and_steers_the_swarm(spawn, probe, chromium, tmp_path):
     assert launcher.wait(60) == 0
 
 
+def test_the_page_keeps_and_shows_the_swarms_rotation(spawn, probe, chromium, tmp_path):
+    """Combined scenario (ω = −0.7 rad/s): the page shows ω; dragging the dial
+    changes the direction and leaves ω alone; a choice is shown pending until the
+    swarm's command shows it; an ω set by another client shows within a second."""
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    launcher, url = launch_with_dashboard(spawn, tmp_path / "out", N, setup="combined")
+    probe.sample_poses(N)
+    chromium.get(url)
+    probe.wait(lambda: probe.desired, 60.0, "/swarm/desired_velocity")
+    omega = probe.desired[-1].twist.angular.z
+    assert omega == pytest.approx(-0.7)
+
+    def shown() -> dict:
+        return chromium.execute_script(
+            "const s = window.aesDashboard; return {command: s.command, pending: s.pending,"
+            " omega: document.getElementById('omega-value').textContent,"
+            " slider: Number(document.getElementById('omega').value),"
+            " note: document.getElementById('pending').textContent};"
+        )
+
+    probe.wait(lambda: (shown()["command"] or {}).get("omega") is not None, 30.0, "a frame")
+    page = shown()
+    assert page["omega"] == "-0.70" and page["slider"] == pytest.approx(-0.7), page
+
+    # drag the dial from east to north: the direction turns north, ω stays −0.7
+    dial = chromium.find_element(By.ID, "dial")
+    drag = ActionChains(chromium).move_to_element_with_offset(dial, 60, 0).click_and_hold()
+    drag.move_by_offset(-30, -30).move_by_offset(-30, -35).release().perform()
+    assert "v_d →" in shown()["note"]  # pending until the swarm's command shows it
+    probe.wait(
+        lambda: probe.desired[-1].twist.linear.y > 0.8, 10.0, "/swarm/desired_velocity north"
+    )
+    assert probe.desired[-1].twist.angular.z == pytest.approx(omega)
+    probe.wait(lambda: not shown()["pending"].get("direction"), 5.0, "the choice taken")
+    page = shown()
+    assert page["note"] == "" and page["command"]["direction"][1] > 0.8, page
+    assert page["command"]["omega"] == pytest.approx(omega) and page["omega"] == "-0.70"
+    chromium.screenshot("dragged-north")
+
+    # another client sets ω: the page shows it within a second
+    cmd = probe.publisher(Twist, names.CMD, COMMAND)
+    cmd.publish(Twist(linear=Vector3(x=0.0, y=1.0), angular=Vector3(z=0.4)))
+    probe.wait(lambda: probe.desired[-1].twist.angular.z == pytest.approx(0.4), 5.0, "ω = 0.4")
+    heard = time.monotonic()
+    probe.wait(lambda: shown()["omega"] == "0.40", 1.0, "the page showing ω = 0.40")
+    print(f"\nthe page showed the new ω {time.monotonic() - heard:.2f} s after the probe heard it")
+    assert shown()["slider"] == pytest.approx(0.4)
+
+    # the ω slider changes ω only: the direction stays north
+    chromium.execute_script(
+        "const s = document.getElementById('omega'); s.value = -0.3;"
+        " s.dispatchEvent(new Event('change'));"
+    )
+    probe.wait(lambda: probe.desired[-1].twist.angular.z == pytest.approx(-0.3), 10.0, "ω = −0.3")
+    assert probe.desired[-1].twist.linear.y == pytest.approx(1.0)
+    probe.wait(lambda: shown()["note"] == "", 5.0, "nothing pending")
+    chromium.screenshot("omega-set")
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(60) == 0
+
+
 def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path):
     from selenium.webdriver.common.action_chains import ActionChains
     from selenium.webdriver.common.by import By
@@ -121,7 +184,14 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
         "--port", "0", name="dashboard",
     )  # fmt: skip
     url = dashboard_url(spawn, dashboard)
-    commands = probe.record(Twist, names.CMD, COMMAND)
+    # the swarm command is the supervisor's: one to steer, and a record of its command
+    spawn.start(
+        "aes-supervisor", "--ros-args", "-p", "scenario:=linear", "-p", "num_robots:=4",
+        name="supervisor",
+    )  # fmt: skip
+    probe.sample_poses(4)
+    probe.wait(lambda: probe.desired, 60.0, "the supervisor's command")
+    commands = probe.desired
 
     chromium.get(local(url).split("?")[0])  # no token
     assert "401" in chromium.find_element(By.TAG_NAME, "body").text
@@ -130,7 +200,7 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
     assert "401" in chromium.find_element(By.TAG_NAME, "body").text
     chromium.screenshot("refused")
     time.sleep(1.0)
-    assert commands == []
+    assert len(commands) == 1  # the supervisor's own, nothing from the page
 
     chromium.get(local(url))
     probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
@@ -139,12 +209,13 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
     def click_east() -> None:
         ActionChains(chromium).move_to_element_with_offset(dial, 65, 0).click().perform()
 
-    # one message a click: clicked again until discovery has matched the probe
+    # one message a click: clicked again until discovery has matched the supervisor
     deadline = time.monotonic() + 30.0
-    while not commands and time.monotonic() < deadline:
+    while len(commands) == 1 and time.monotonic() < deadline:
         click_east()
         time.sleep(0.5)
     results = (browser.page_state(chromium) or {}).get("results")
-    assert commands, f"no /swarm/cmd from the page; its results: {results}"
-    assert commands[-1].linear.x > 0.8 and abs(commands[-1].linear.y) < 0.05
+    assert len(commands) > 1, f"no command from the page; its results: {results}"
+    east = commands[-1].twist
+    assert east.linear.x > 0.8 and abs(east.linear.y) < 0.05
     chromium.screenshot("with-token")

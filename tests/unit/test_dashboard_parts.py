@@ -29,6 +29,9 @@ from sim_bridge.lockstep import LockstepBarrier
 def test_valid_controls_parse_to_what_they_ask() -> None:
     drive = parse_control('{"type": "drive", "direction": [0, 0.05], "omega": 0.1}')
     assert drive == Drive((0.0, 0.05), 0.1)
+    # a drag changes only what it changes: the other part is left to the swarm
+    assert parse_control('{"type": "drive", "direction": [-1, 0]}') == Drive((-1.0, 0.0), None)
+    assert parse_control('{"type": "drive", "omega": -0.7}') == Drive(None, -0.7)
     assert parse_control('{"type": "enable", "enabled": false}') == Enable(False)
     assert parse_control('{"type": "gain", "name": "alpha", "value": -5}') == SetGain("alpha", -5.0)
     assert parse_control(b'{"type": "sim", "action": "reset"}') == SimAction("reset")
@@ -50,7 +53,8 @@ def test_valid_controls_parse_to_what_they_ask() -> None:
         ('{"type": "sim", "action": "explode"}', "explode"),
         ('{"type": "launch"}', "type"),
         ('{"type": "enable", "enabled": true, "extra": 1}', "extra"),
-        ('{"type": "drive", "omega": 0}', "direction"),
+        ('{"type": "drive"}', "direction, omega"),
+        ('{"type": "drive", "omega": 0, "speed": 1}', "speed"),
         ("[1, 2]", "not a JSON object"),
         ("{not json", "not JSON"),
         ("[" * 5000, "bytes"),
