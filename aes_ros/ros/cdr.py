@@ -228,3 +228,60 @@ def decode_odometry(data: bytes) -> tuple[int, int, float, float, float]:
     x, y, _, qx, qy, qz, qw = struct.unpack_from(order + "7d", data, _HEADER + pose_at)
     x, y, yaw = planar_pose(x, y, qx, qy, qz, qw)
     return sec, nanosec, x, y, yaw
+
+
+#: ``sensor_msgs/Image`` encodings the camera and the tracker use, and their channels.
+IMAGE_ENCODINGS = {"mono8": 1, "rgb8": 3, "bgr8": 3}
+
+
+def encode_image(sec: int, nanosec: int, frame_id: str, image: np.ndarray, encoding: str) -> bytes:
+    """A ``sensor_msgs/Image`` of ``image: (H, W)`` or ``(H, W, 3)`` uint8 in its wire
+    format, for ``Publisher.publish``: a 1.2 MB frame goes out as one copy of its
+    pixels instead of rclpy converting a Python sequence of them."""
+    height, width = image.shape[:2]
+    step = width * IMAGE_ENCODINGS[encoding]
+    frame, code = frame_id.encode() + b"\0", encoding.encode() + b"\0"
+    at = _align(12 + len(frame), 4)  # height, width
+    at_code = at + 8
+    at_flag = at_code + 4 + len(code)  # is_bigendian (uint8)
+    at_step = _align(at_flag + 1, 4)
+    at_data = at_step + 4  # uint32 length, then the bytes
+    buf = _buffer_with_frame(_HEADER + at_data + 4 + height * step, frame)
+    struct.pack_into("<iI", buf, _HEADER, sec, nanosec)
+    struct.pack_into("<III", buf, _HEADER + at, height, width, len(code))
+    buf[_HEADER + at_code + 4 : _HEADER + at_flag] = code
+    struct.pack_into("<II", buf, _HEADER + at_step, step, height * step)
+    buf[_HEADER + at_data + 4 :] = np.ascontiguousarray(image, dtype=np.uint8).tobytes()
+    return bytes(buf)
+
+
+def decode_image(data: bytes) -> tuple[int, int, str, np.ndarray]:
+    """(stamp sec, stamp nanosec, encoding, pixels (H, W) or (H, W, 3) uint8, a view of
+    ``data``) of a raw ``sensor_msgs/Image``. BadMessageError for a truncated or
+    malformed message, an encoding other than :data:`IMAGE_ENCODINGS`, or a step or
+    data length that does not fit height × width."""
+    order, sec, nanosec, at, height = _header_and_count(data, "Image")
+    if _HEADER + at + 12 > len(data):
+        raise BadMessageError("Image: truncated")
+    width, code_len = struct.unpack_from(order + "II", data, _HEADER + at + 4)
+    at_flag = at + 12 + code_len
+    if code_len == 0 or _HEADER + at_flag + 1 > len(data):
+        raise BadMessageError("Image: truncated encoding")
+    encoding = bytes(data[_HEADER + at + 12 : _HEADER + at_flag - 1]).decode("ascii", "replace")
+    if encoding not in IMAGE_ENCODINGS:
+        known = ", ".join(IMAGE_ENCODINGS)
+        raise BadMessageError(f"Image: encoding {encoding!r}; this tracker reads {known}")
+    at_step = _align(at_flag + 1, 4)
+    if _HEADER + at_step + 8 > len(data):
+        raise BadMessageError("Image: truncated")
+    step, size = struct.unpack_from(order + "II", data, _HEADER + at_step)
+    channels = IMAGE_ENCODINGS[encoding]
+    if height == 0 or width == 0 or step != width * channels or size != height * step:
+        raise BadMessageError(
+            f"Image: {width}x{height} {encoding} with step {step} and {size} bytes of data"
+        )
+    if _HEADER + at_step + 8 + size > len(data):
+        raise BadMessageError(f"Image: {size} bytes of data announced, message too short")
+    pixels = np.frombuffer(data, np.uint8, count=size, offset=_HEADER + at_step + 8)
+    shape = (height, width) if channels == 1 else (height, width, channels)
+    return sec, nanosec, encoding, pixels.reshape(shape)

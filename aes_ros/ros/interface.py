@@ -53,6 +53,15 @@ HEADING_ORDER = "/swarm/heading_order"
 TOTAL_FORCE = "/swarm/total_force"
 #: visualization_msgs/MarkerArray of the swarm for RViz2 and Foxglove (the dashboard's).
 MARKERS = "/swarm/markers"
+#: The overhead camera (SPEC §8): sensor_msgs/Image (mono8, stamp = exposure time) and
+#: sensor_msgs/CameraInfo (its true intrinsics and distortion).
+CAMERA_IMAGE = "/arena_camera/image_raw"
+CAMERA_INFO = "/arena_camera/camera_info"
+#: The bridge's exact poses while a tracker publishes /swarm/poses: for evaluation only,
+#: never read by the control loop.
+GROUND_TRUTH_POSES = "/sim/ground_truth/poses"
+#: The frame of the camera's images (REP-105 style: a sensor frame of its own).
+CAMERA_FRAME = "arena_camera"
 #: diagnostic_msgs/DiagnosticArray: the bridge's view of which robots are silent
 #: (:mod:`aes_ros.ros.diagnostics`).
 DIAGNOSTICS = "/diagnostics"

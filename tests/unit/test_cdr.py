@@ -1,4 +1,4 @@
-"""The numpy PoseArray wire format equals rclpy's serialisation, both ways."""
+"""The numpy wire formats (PoseArray, Image) equal rclpy's serialisation, both ways."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ pytest.importorskip("rclpy")
 
 from geometry_msgs.msg import PoseArray
 from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Image
 
-from aes_ros.ros.cdr import PoseArrayEncoder, decode_pose_array
+from aes_ros.ros.cdr import PoseArrayEncoder, decode_image, decode_pose_array, encode_image
 from aes_ros.ros.conversions import BadMessageError, arrays_to_poses, poses_to_arrays
 
 
@@ -155,3 +156,46 @@ def test_vector3_stamped_encoder_writes_what_rclpy_reads_back(frame: str) -> Non
         data = encoder.encode(sec, 999_999_999, x, y)
         assert deserialize_message(data, Vector3Stamped) == msg
         assert len(data) == len(serialize_message(msg))
+
+
+def image_message(pixels: np.ndarray, encoding: str, frame: str) -> Image:
+    msg = Image(height=pixels.shape[0], width=pixels.shape[1], encoding=encoding)
+    msg.step = pixels.shape[1] * (pixels.shape[2] if pixels.ndim == 3 else 1)
+    msg.data = pixels.tobytes()
+    msg.header.frame_id = frame
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 7, 50_000_000
+    return msg
+
+
+@pytest.mark.parametrize(
+    ("shape", "encoding", "frame"),
+    [((3, 5), "mono8", "arena_camera"), ((4, 2, 3), "rgb8", "c"), ((960, 1280), "mono8", "")],
+)
+def test_image_wire_format_both_ways(shape: tuple, encoding: str, frame: str) -> None:
+    pixels = np.random.default_rng(1).integers(0, 256, shape, dtype=np.uint8)
+    data = encode_image(7, 50_000_000, frame, pixels, encoding)
+    ref = serialize_message(image_message(pixels, encoding, frame))
+    assert len(data) == len(ref)
+    assert deserialize_message(data, Image) == deserialize_message(ref, Image)
+    sec, nanosec, enc, back = decode_image(ref)
+    assert (sec, nanosec, enc) == (7, 50_000_000, encoding)
+    assert back.shape == shape and np.array_equal(back, pixels)
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        ({"encoding": "yuv422"}, "encoding 'yuv422'"),
+        ({"step": 4}, "step 4"),
+        ({"height": 0, "data": b""}, "5x0"),
+        ({"data": bytes(14)}, "14 bytes"),
+    ],
+)
+def test_a_bad_image_is_refused_with_the_reason(change: dict, reason: str) -> None:
+    msg = image_message(np.zeros((3, 5), np.uint8), "mono8", "c")
+    for field, value in change.items():
+        setattr(msg, field, value)
+    with pytest.raises(BadMessageError, match=reason):
+        decode_image(serialize_message(msg))
+    with pytest.raises(BadMessageError):
+        decode_image(serialize_message(msg)[:30])
