@@ -24,9 +24,9 @@ Usage::
 Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default
 ``out/bench_ros``), prints a table and, as its last line,
 ``RESULT robots=… hz=… source=… rate_hz=… rate_min_hz=… rtf=… p99_ms=… start_s=…
-cpu_us_per_robot_step=… baseline_cpu_us_per_robot_step=… efficiency_ratio=…
-efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses (or the first
-configuration measured if that one is not in the grid). Before it, the goals of issue
+cpu_us_per_robot_step=… baseline_robots=… baseline_hz=… baseline_cpu_us_per_robot_step=…
+efficiency_ratio=… efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses
+(or the first configuration measured if that one is not in the grid). Before it, the goals of issue
 #13 that the run's rows can judge (efficiency ratios, odometry at 100 robots and 50 Hz,
 the start and rate of 1000 robots), each ``met`` or ``NOT met; bound: <the benchmark or
 profile that shows what bounds it>``.
@@ -43,7 +43,13 @@ same run measures it for the straightforward design other ROS swarm packages use
 (``bench/naive_swarm.py``: one rclpy node per robot on a SingleThreadedExecutor,
 neighbours' Odometry as message objects, Twist objects out, 10 robots per process)
 with the same bridge and supervisor; ``efficiency_ratio`` is its figure over ours
-(poses; ``_odom``: ours with odometry too). ``--no-baseline`` skips it.
+(poses; ``_odom``: ours with odometry too), both at ``baseline_robots`` and ``baseline_hz``:
+the RESULT line's robots and rate, or 100 robots at 50 Hz when the RESULT line has more than
+100 robots (``--robots 1000`` would start 100 naive processes, which takes longer than the
+measurement; the run says so and measures this design at 100 robots too, if the grid lacks
+it). ``--no-baseline`` skips it; a baseline that fails (it gets 120 s to start and refuses
+to run beside another swarm in the ROS domain, as a launch does) is printed as FAILED and
+leaves the RESULT line without its ratios, keeping the rows measured.
 
 The ``physics`` line runs 100 Mona robots in ``dynamic`` mode at 240 Hz
 physics with no ROS at all and reports the real-time factor of pybullet alone.
@@ -80,6 +86,14 @@ STANDARD_GRID = [
     (16, 20, "odom", "per-robot"),
 ]
 QUICK_GRID = [(16, 20, "poses", "auto")]
+#: The RESULT line's configuration when the grid has it: (robots, rate [Hz], source).
+REFERENCE = (100, 50, "poses")
+#: The most robots the straightforward design is measured at. It runs 10 robots per process:
+#: at 1000 robots that is 100 rclpy processes, which take far longer to start than the
+#: measurement itself, so a larger RESULT line gets its baseline at the reference size.
+BASELINE_MAX_ROBOTS = 100
+#: Wall seconds the straightforward design gets until every robot moves (~10 s at 100 robots).
+NAIVE_START_TIMEOUT = 120.0
 
 #: Where a goal's bound is measured when the run does not meet it.
 FLOOR = "bench/bench_floor.py (the floor of one cmd_vel topic per robot)"
@@ -234,6 +248,7 @@ def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row
         supervisor_command,
         write_scenario,
     )
+    from aes_ros.ros.launch.preflight import refuse_other_swarm
     from aes_ros.ros.launch.processes import ProcessSet, fastdds_environment
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
@@ -245,21 +260,32 @@ def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row
     naive = Path(__file__).with_name("naive_swarm.py")
     t0 = time.monotonic()
     try:
+        refuse_other_swarm(monitor.other_swarm(1.0))  # as a launch does: it would take commands
         children = [procs.start(*bridge_command(config, scenario_file)),
                     procs.start(*supervisor_command(config, scenario_file))]  # fmt: skip
         for k, ids in enumerate(split_robots(robots, -(-robots // 10))):
             cmd = [sys.executable, str(naive), "--scenario", str(scenario_file),
                    "--ids", f"{ids[0]}:{ids[-1] + 1}"]  # fmt: skip
             children.append(procs.start(f"robot_naive_{k}", cmd))
-        deadline = time.monotonic() + 600.0
-        while True:
+        deadline = time.monotonic() + NAIVE_START_TIMEOUT
+        moved = np.zeros(robots, dtype=bool)
+        checked = 0.0
+        while not moved.all():
             monitor.spin_once(0.05)
+            if time.monotonic() - checked > 0.5:
+                checked = time.monotonic()
+                refuse_other_swarm(monitor.second_swarm())
             if len(monitor.times) > 1:
-                moved = np.linalg.norm(monitor.positions[-1] - monitor.positions[0], axis=-1)
-                if np.all(moved > 1e-4):
-                    break
+                moved |= (
+                    np.linalg.norm(monitor.positions[-1] - monitor.positions[0], axis=-1) > 1e-4
+                )
             if time.monotonic() > deadline or any(c.proc.poll() is not None for c in children):
-                raise RuntimeError(f"the naive swarm did not start; logs in {work / 'logs'}")
+                still = np.flatnonzero(~moved)
+                raise RuntimeError(
+                    f"the naive swarm did not start within {time.monotonic() - t0:.0f} s: "
+                    f"{len(still)} of {robots} robots never moved (first: {still[:10].tolist()}), "
+                    f"{len(monitor.times)} pose samples; logs in {work / 'logs'}"
+                )
         start_s = time.monotonic() - t0
         _spin(monitor, warmup)
         monitor.bridge_stats()
@@ -311,11 +337,21 @@ def physics_rtf(robots: int = 100, physics_rate: float = 240.0, seconds: float =
 
 
 def _row(rows: list[Row], robots: int, rate: float, source: str, design: str = "aes") -> Row | None:
+    """The first row of ``design`` measured at ``robots``, ``rate`` [Hz] and ``source``."""
     return next(
         (r for r in rows
          if (r.robots, r.rate, r.source, r.design) == (robots, rate, source, design)),
         None,
     )  # fmt: skip
+
+
+def baseline_size(robots: int, rate: float) -> tuple[int, float]:
+    """(robots, rate [Hz]) at which the straightforward design is measured for a RESULT line
+    of ``robots`` at ``rate``: the same, or the reference size (``REFERENCE``) when that is
+    more than ``BASELINE_MAX_ROBOTS``. Either way this design is compared at that size."""
+    if robots <= BASELINE_MAX_ROBOTS:
+        return robots, rate
+    return REFERENCE[0], REFERENCE[1]
 
 
 def goal_lines(rows: list[Row]) -> list[str]:
@@ -464,25 +500,40 @@ def main(argv: list[str] | None = None) -> int:
     if not rows:
         print("RESULT failed: no configuration measured")
         return 1
-    reference = (100, 50, "poses")
-    key = next((r for r in rows if (r.robots, r.rate, r.source) == reference), rows[0])
+    key = _row(rows, *REFERENCE) or rows[0]
+    naive = None
     ratios = ""
     if not args.no_baseline:
-        # the same robots and rate: this design with odometry too, and the naive one
-        odom = next(
-            (r for r in rows if (r.robots, r.rate, r.source) == (key.robots, key.rate, "odom")),
-            None,
-        )
-        if odom is None:
-            odom = measure(key.robots, key.rate, "odom", key.layout, args.warmup, args.window)
-            rows.append(odom)
-            print("  ".join(odom.cells()), flush=True)
-        naive = measure_naive(key.robots, key.rate, args.warmup, args.window)
+        # the naive design and this one (poses and odometry) at the same robots and rate
+        base_n, base_rate = baseline_size(key.robots, key.rate)
+        if (base_n, base_rate) != (key.robots, key.rate):
+            print(
+                f"baseline: not at {key.robots} robots ({-(-key.robots // 10)} processes of the "
+                f"straightforward design start for longer than the measurement takes); at "
+                f"{base_n} robots, {base_rate:g} Hz instead, against this design at that size",
+                flush=True,
+            )
+        layout = key.layout if (base_n, base_rate) == (key.robots, key.rate) else "auto"
+        ours: dict[str, Row] = {}
+        try:
+            for source in ("poses", "odom"):
+                found = _row(rows, base_n, base_rate, source)
+                if found is None:
+                    found = measure(base_n, base_rate, source, layout, args.warmup, args.window)
+                    rows.append(found)
+                    print("  ".join(found.cells()), flush=True)
+                ours[source] = found
+            naive = measure_naive(base_n, base_rate, args.warmup, args.window)
+        except Exception as exc:  # the rows measured so far must not be lost
+            print(f"baseline: FAILED, no efficiency ratio in this run: {exc}", flush=True)
+    if naive is not None:
         rows.append(naive)
         print("  ".join(naive.cells()), flush=True)
-        ratio = naive.cpu_us_per_robot_step / key.cpu_us_per_robot_step
+        poses, odom = ours["poses"], ours["odom"]
+        ratio = naive.cpu_us_per_robot_step / poses.cpu_us_per_robot_step
         ratio_odom = naive.cpu_us_per_robot_step / odom.cpu_us_per_robot_step
         ratios = (
+            f" baseline_robots={base_n} baseline_hz={base_rate:g}"
             f" baseline_cpu_us_per_robot_step={naive.cpu_us_per_robot_step:.1f}"
             f" efficiency_ratio={ratio:.2f} efficiency_ratio_odom={ratio_odom:.2f}"
             f" baseline_rate_hz={naive.rate_median_hz:.2f}"
@@ -499,10 +550,10 @@ def main(argv: list[str] | None = None) -> int:
     print(machine)
     if ratios:
         print(
-            f"CPU per robot-step, {key.robots} robots at {key.rate:g} Hz: this design "
-            f"{key.cpu_us_per_robot_step:.0f} µs (poses), {odom.cpu_us_per_robot_step:.0f} µs "
+            f"CPU per robot-step, {base_n} robots at {base_rate:g} Hz: this design "
+            f"{poses.cpu_us_per_robot_step:.0f} µs (poses), {odom.cpu_us_per_robot_step:.0f} µs "
             f"(odom); the straightforward design {naive.cpu_us_per_robot_step:.0f} µs "
-            f"(answering {naive.rate_median_hz:.1f} of {key.rate:g} Hz): efficiency "
+            f"(answering {naive.rate_median_hz:.1f} of {base_rate:g} Hz): efficiency "
             f"{ratio:.2f}x (poses), {ratio_odom:.2f}x (odom)"
         )
     if goals := goal_lines(rows):

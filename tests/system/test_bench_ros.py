@@ -28,6 +28,7 @@ def test_quick_bench_measures_every_robot(ros_env, tmp_path) -> None:
     assert float(fields["cpu_us_per_robot_step"]) > 0.0
     assert float(fields["baseline_cpu_us_per_robot_step"]) > 0.0
     assert float(fields["baseline_rate_hz"]) > 0.0  # the naive robots answered too
+    assert (fields["baseline_robots"], fields["baseline_hz"]) == ("16", "20")  # its own size
     # the machine's speed from the same run, and the figure in its units
     ref = float(fields["machine_ref_us"])
     assert ref > 0.0

@@ -1,4 +1,5 @@
-"""bench/bench_ros.py judges issue #13's goals from its rows (a script, loaded by path)."""
+"""bench/bench_ros.py's choices from its rows: issue #13's goals it judges and the size it
+measures the straightforward baseline at (a script, loaded by path; no ROS)."""
 
 from __future__ import annotations
 
@@ -55,3 +56,103 @@ def test_goals_are_judged_from_the_rows_and_unmet_ones_name_their_bound(bench: M
 
 def test_a_run_without_the_rows_judges_nothing(bench: ModuleType) -> None:
     assert bench.goal_lines([row(bench, 16, 20, "poses", us=200.0, median=20.0)]) == []
+
+
+@pytest.mark.parametrize(
+    ("robots", "rate", "expected"),
+    [(16, 20, (16, 20)), (100, 50, (100, 50)), (100, 10, (100, 10)), (400, 10, (100, 50)),
+     (1000, 20, (100, 50))],
+)  # fmt: skip
+def test_the_baseline_runs_at_the_result_size_up_to_its_limit_else_at_the_reference(
+    bench: ModuleType, robots: int, rate: float, expected: tuple[int, float]
+) -> None:
+    assert bench.baseline_size(robots, rate) == expected
+    assert bench.baseline_size(robots, rate)[0] <= bench.BASELINE_MAX_ROBOTS
+
+
+def run_main(
+    bench: ModuleType, monkeypatch, tmp_path: Path, *argv: str, naive_fails: bool = False
+) -> tuple[list, str]:
+    """``bench_ros.main`` with every measurement faked; returns what it measured and printed."""
+    measured: list[tuple] = []
+
+    def measure(robots, rate, source, layout, warmup, window):
+        measured.append(("aes", robots, rate, source))
+        us = {"poses": 200.0, "odom": 500.0}[source] * (0.5 if robots == 1000 else 1.0)
+        return row(bench, robots, rate, source, us=us, median=rate)
+
+    def measure_naive(robots, rate, warmup, window):
+        measured.append(("naive", robots, rate, "odom"))
+        if naive_fails:
+            raise RuntimeError("the naive swarm did not start within 120 s")
+        return row(bench, robots, rate, "odom", us=3000.0, median=6.0, design="naive")
+
+    monkeypatch.setattr(bench, "measure", measure)
+    monkeypatch.setattr(bench, "measure_naive", measure_naive)
+    monkeypatch.setattr(bench, "physics_rtf", lambda seconds: 3.0)
+    monkeypatch.setattr(bench, "machine_reference_us", lambda: 10.0)
+    monkeypatch.setattr(bench, "plot", lambda rows, path: None)
+    printed: list[str] = []
+    monkeypatch.setattr("builtins.print", lambda *a, **k: printed.append(" ".join(map(str, a))))
+    assert bench.main([*argv, "--out", str(tmp_path)]) == 0
+    return measured, "\n".join(printed)
+
+
+def result_fields(text: str) -> dict[str, str]:
+    last = text.strip().splitlines()[-1]
+    assert last.startswith("RESULT ")
+    return dict(item.split("=") for item in last.split()[1:])
+
+
+def test_1000_robots_get_their_baseline_at_100_robots_against_this_design_there(
+    bench: ModuleType, monkeypatch, tmp_path: Path
+) -> None:
+    measured, text = run_main(bench, monkeypatch, tmp_path, "--robots", "1000", "--rates", "20")
+    # no naive swarm (nor odometry) at 1000 robots: both designs at the reference size
+    assert measured == [
+        ("aes", 1000, 20, "poses"), ("aes", 100, 50, "poses"), ("aes", 100, 50, "odom"),
+        ("naive", 100, 50, "odom"),
+    ]  # fmt: skip
+    assert "baseline: not at 1000 robots (100 processes" in text
+    fields = result_fields(text)
+    assert (fields["robots"], fields["hz"], fields["source"]) == ("1000", "20", "poses")
+    assert fields["cpu_us_per_robot_step"] == "100.0"  # the 1000-robot line's own figure
+    assert (fields["baseline_robots"], fields["baseline_hz"]) == ("100", "50")
+    assert float(fields["efficiency_ratio"]) == pytest.approx(3000.0 / 200.0)
+    assert float(fields["efficiency_ratio_odom"]) == pytest.approx(3000.0 / 500.0)
+    assert "CPU per robot-step, 100 robots at 50 Hz" in text
+
+
+def test_a_small_run_measures_its_baseline_at_its_own_size_and_reuses_its_rows(
+    bench: ModuleType, monkeypatch, tmp_path: Path
+) -> None:
+    measured, text = run_main(
+        bench, monkeypatch, tmp_path, "--robots", "16", "--rates", "20", "--sources", "poses,odom"
+    )
+    assert measured == [
+        ("aes", 16, 20, "poses"), ("aes", 16, 20, "odom"), ("naive", 16, 20, "odom")
+    ]  # fmt: skip
+    assert "baseline: not at" not in text
+    fields = result_fields(text)
+    assert (fields["baseline_robots"], fields["baseline_hz"]) == ("16", "20")
+    assert float(fields["efficiency_ratio"]) == pytest.approx(15.0)
+
+
+def test_no_baseline_measures_only_the_grid(bench: ModuleType, monkeypatch, tmp_path: Path) -> None:
+    measured, text = run_main(
+        bench, monkeypatch, tmp_path, "--robots", "1000", "--rates", "20", "--no-baseline"
+    )
+    assert measured == [("aes", 1000, 20, "poses")]
+    assert "efficiency_ratio" not in result_fields(text)
+
+
+def test_a_failed_baseline_keeps_the_measured_rows_and_says_so(
+    bench: ModuleType, monkeypatch, tmp_path: Path
+) -> None:
+    argv = ("--robots", "1000", "--rates", "20")
+    measured, text = run_main(bench, monkeypatch, tmp_path, *argv, naive_fails=True)
+    assert [m[1] for m in measured] == [1000, 100, 100, 100]  # the naive one was tried
+    assert "baseline: FAILED, no efficiency ratio in this run: the naive swarm" in text
+    fields = result_fields(text)
+    assert fields["robots"] == "1000" and "efficiency_ratio" not in fields
+    assert (tmp_path / "bench_ros.csv").read_text().count("\n") == 1 + 3  # header, 3 rows
