@@ -7,6 +7,17 @@ recognises the live centroid (a published centre equal to the centroid of the
 poses with the same stamp) uses the centroid of the very poses it acts on
 instead of the published copy, which arrives one message late: so it has the
 same x_c as the offline simulator.
+
+The choice depends on the stamps of the messages heard, not on how the two
+streams interleave (each arrives in its publisher's order): the centre in force is
+the newest one that the poses heard so far reach. A centre ahead of them (the
+supervisor heard its poses first, or no poses yet) is undecided, and the one before
+it stays in force, point and all. Once poses reach it, it is the live centroid if
+the poses of its stamp were heard and match it, else a fixed point (they passed its
+stamp without it: a fixed centre, or the centroid of poses this process lost).
+Taking a centre heard before any poses for a fixed point at once, as before, left a
+robot on a stale centroid for a step when the supervisor's next centre came late
+(the specification and that case: tests/unit/test_rotation_center.py).
 """
 
 from __future__ import annotations
@@ -18,7 +29,7 @@ from aes_ros.model import SwarmCommand
 #: A published centre this close [m] to the centroid of the poses with the same
 #: stamp means the supervisor follows the live centroid.
 CENTROID_MATCH_TOL = 1e-9
-#: How many recent poses messages' centroids are remembered.
+#: How many recent poses messages' centroids, and undecided centres, are remembered.
 CENTROID_MEMORY = 8
 
 
@@ -32,12 +43,15 @@ class RotationCenterRule:
     """
 
     def __init__(self, center: np.ndarray | None) -> None:
+        #: The newest centre heard (2,) [m] (x_c of robots that see no poses).
         self.point = None if center is None else np.asarray(center, dtype=float)
+        #: The centre in force is the live centroid (else the fixed ``_fixed``).
         self.follows_centroid = center is None
-        self._point_stamp = -1
-        self._pending = False
+        self._fixed = self.point
         self._centroids: dict[int, np.ndarray] = {}
         self._last_poses_stamp: int | None = None
+        #: Centres ahead of the poses heard, (stamp, point) in arrival order.
+        self._undecided: list[tuple[int, np.ndarray]] = []
 
     def on_poses(self, stamp_ns: int, centroid: np.ndarray) -> None:
         """The centroid (2,) of a poses message stamped ``stamp_ns``."""
@@ -45,31 +59,40 @@ class RotationCenterRule:
         if len(self._centroids) > CENTROID_MEMORY:
             del self._centroids[next(iter(self._centroids))]
         self._last_poses_stamp = stamp_ns
-        if self._pending and stamp_ns >= self._point_stamp:
-            same_stamp = stamp_ns == self._point_stamp
-            self.follows_centroid = same_stamp and _same_point(centroid, self.point)
-            self._pending = False
+        undecided = self._undecided
+        if undecided:  # the newest centre these poses reach is in force
+            for k in range(len(undecided) - 1, -1, -1):
+                stamp, point = undecided[k]
+                if stamp <= stamp_ns:
+                    self._take(point, stamp == stamp_ns and _same_point(centroid, point))
+                    del undecided[: k + 1]  # the later ones stay ahead
+                    break
 
     def on_center(self, stamp_ns: int, point: np.ndarray) -> None:
         """The supervisor's centre (2,) [m], stamped ``stamp_ns``."""
         self.point = point
-        self._point_stamp = stamp_ns
         centroid = self._centroids.get(stamp_ns)
         if centroid is not None:
-            self.follows_centroid = _same_point(centroid, point)
-            self._pending = False
-        elif self._last_poses_stamp is not None and stamp_ns > self._last_poses_stamp:
-            self._pending = True  # arrived before its poses: decide when they come
-        else:
-            self.follows_centroid = False
-            self._pending = False
+            self._take(point, _same_point(centroid, point))
+        elif self._last_poses_stamp is not None and stamp_ns < self._last_poses_stamp:
+            self._take(point, False)  # the poses passed it without its own
+        else:  # ahead of the poses: decided when they reach it
+            self._undecided.append((stamp_ns, point))
+            if len(self._undecided) > CENTROID_MEMORY:
+                del self._undecided[0]
+            return
+        self._undecided.clear()  # older than this one: superseded
+
+    def _take(self, point: np.ndarray, follows: bool) -> None:
+        self.follows_centroid = follows
+        self._fixed = point
 
     def center(self, centroid: np.ndarray | None) -> np.ndarray | None:
         """x_c for a step whose poses have ``centroid`` (None: not known, e.g. the
-        ``odom`` source); None when no centre is known at all."""
-        if self.follows_centroid and centroid is not None:
-            return centroid
-        return self.point
+        ``odom`` source: the newest centre heard); None when no centre is known at all."""
+        if centroid is None:
+            return self.point
+        return centroid if self.follows_centroid else self._fixed
 
 
 def _same_point(a: np.ndarray, b: np.ndarray | None) -> bool:
