@@ -25,8 +25,9 @@ class ParamSpec:
     """Definition of one parameter.
 
     ``kind`` is one of ``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"vec2"``
-    (two floats) or ``"center"`` (``"centroid"`` or two floats).
-    ``low``/``high`` bound numbers (and every component of a ``vec2``);
+    (two floats), ``"center"`` (``"centroid"`` or two floats) or ``"rect"`` (empty,
+    or four floats x_min, x_max, y_min, y_max with x_min < x_max and y_min < y_max).
+    ``low``/``high`` bound numbers (and every component of a ``vec2`` or ``rect``);
     ``choices`` lists allowed strings.
     """
 
@@ -54,6 +55,11 @@ class ParamSpec:
             return f"two numbers 'x,y', each in {rng}"
         if self.kind == "center":
             return f"'centroid' or two numbers 'x,y', each in {rng}"
+        if self.kind == "rect":
+            return (
+                f"empty (none) or four numbers 'x_min,x_max,y_min,y_max', each in {rng}, "
+                "x_min < x_max, y_min < y_max"
+            )
         return f"a number in {rng}"
 
     def validate(self, value: Any) -> Any:
@@ -79,6 +85,8 @@ class ParamSpec:
             return value
         if self.kind == "center" and isinstance(value, str) and value == "centroid":
             return "centroid"
+        if self.kind == "rect":
+            return self._rect(value)
         if self.kind in ("vec2", "center"):
             if isinstance(value, str):
                 value = [v for v in value.replace("[", "").replace("]", "").split(",") if v]
@@ -90,6 +98,20 @@ class ParamSpec:
                 raise ValueError("not an integer")
             return self._number(value, int)
         return self._number(value, float)
+
+    def _rect(self, value: Any) -> tuple[float, ...]:
+        if value is None or (isinstance(value, str) and value.strip().lower() in ("", "none")):
+            return ()
+        if isinstance(value, str):
+            value = [v for v in value.replace("[", "").replace("]", "").split(",") if v.strip()]
+        if isinstance(value, bool | int | float) or len(value) not in (0, 4):
+            raise ValueError("need four numbers or none")
+        if len(value) == 0:
+            return ()
+        x_min, x_max, y_min, y_max = (self._number(v, float) for v in value)
+        if not (x_min < x_max and y_min < y_max):
+            raise ValueError("need x_min < x_max and y_min < y_max")
+        return (x_min, x_max, y_min, y_max)
 
     def _number(self, value: Any, typ: type) -> Any:
         if isinstance(value, bool):
@@ -112,6 +134,14 @@ def _p(
 ) -> ParamSpec:
     return ParamSpec(name, default, kind, description, unit, **kw)
 
+
+#: The Mona's top forward speed [m/s] (9 rad/s × 15 mm) and body radius [m] (Ø 80 mm),
+#: SPEC §5.
+MONA_TOP_SPEED, MONA_RADIUS = 0.13, 0.04
+#: The arena keeper's reaction time [s]: from a robot entering the margin to the sheet
+#: no longer moving outward (derivation in :mod:`aes_ros.arena`). The default margin is
+#: the distance a robot covers in it at top speed, plus its radius.
+ARENA_REACTION_TIME = 1.0
 
 #: Every scenario parameter, in the order the docs list them. Defaults are the
 #: paper's Table 1 (SPEC §4), with the rotation rate in our counter-clockwise
@@ -207,7 +237,7 @@ PARAMS: dict[str, ParamSpec] = {
         _p("clip", False, "bool", "clip commands to the robot's limits"),
         _p(
             "max_linear_speed",
-            0.13,
+            MONA_TOP_SPEED,
             "float",
             "Mona's top forward speed (9 rad/s × 15 mm)",
             "m/s",
@@ -221,6 +251,35 @@ PARAMS: dict[str, ParamSpec] = {
             "Mona's top turn rate (2·0.13 m/s / 78 mm)",
             "rad/s",
             low=0.0,
+            high=100.0,
+        ),
+        # --- arena keeper (supervisor; aes_ros.arena) ---
+        _p(
+            "arena",
+            (),
+            "rect",
+            "arena rectangle in the world frame (odom) the supervisor keeps the swarm in "
+            "(e.g. the camera's view); empty: no arena keeper",
+            "m",
+            low=-1e4,
+            high=1e4,
+        ),
+        _p(
+            "arena_policy",
+            "turn",
+            "str",
+            "what the arena keeper does when the swarm heads out of the arena: turn v_d "
+            "towards the arena's centre, or stop (disable) the robots",
+            choices=("turn", "stop"),
+        ),
+        _p(
+            "arena_margin",
+            round(MONA_RADIUS + MONA_TOP_SPEED * ARENA_REACTION_TIME, 4),
+            "float",
+            "distance from a wall at which the arena keeper acts (robot radius + top speed "
+            "× reaction time 1 s); freed again at twice this distance",
+            "m",
+            low=0.001,
             high=100.0,
         ),
     ]

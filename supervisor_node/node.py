@@ -17,11 +17,18 @@ Steer at runtime (full ROS 2 install)::
     ros2 topic pub --once /swarm/cmd geometry_msgs/msg/Twist "{linear: {x: 0.0, y: 1.0}}"
     ros2 param set /supervisor rotation_rate 0.5
     ros2 service call /swarm/enable std_srvs/srv/SetBool "{data: false}"
+
+Keep the swarm in a 3 m × 2 m arena (turn it back towards the centre near a wall)::
+
+    aes-supervisor --ros-args -p scenario:=linear -p "arena:=[-1.5, 1.5, -1.0, 1.0]"
+    ros2 param set /supervisor arena_policy stop
 """
 
 from __future__ import annotations
 
+import array
 import sys
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,6 +39,7 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Bool, Float64
 from std_srvs.srv import SetBool
 
+from aes_ros.arena import KeeperState, arena_or_none, keep_in_arena
 from aes_ros.metrics import alignment_order, heading_order, total_force
 from aes_ros.model import GAIN_FIELDS, Gains, SwarmCommand, total_forces
 from aes_ros.params import PARAMS, ParameterError
@@ -44,12 +52,16 @@ from aes_ros.ros.qos import COMMAND, SENSOR
 from aes_ros.ros.qos import LATCHED_WRITER as LATCHED
 from aes_ros.ros.spin import run_node_process
 
-#: Supervisor parameters checked against a PARAMS entry of another name.
+#: Supervisor parameters checked against their PARAMS entry (some of another name).
 _SPEC_OF = {
     "desired_direction": PARAMS["direction"],
     "rotation_rate": PARAMS["omega"],
     "rotation_center": PARAMS["rotation_center"],
+    "arena": PARAMS["arena"],
+    "arena_policy": PARAMS["arena_policy"],
+    "arena_margin": PARAMS["arena_margin"],
 }
+_ARENA_NAMES = ("arena", "arena_policy", "arena_margin")
 _COMMAND_NAMES = (
     "desired_direction",
     "rotation_rate",
@@ -57,6 +69,7 @@ _COMMAND_NAMES = (
     "rotation_center",
     "publish_rate",
     "enabled",
+    *_ARENA_NAMES,
 )
 
 
@@ -77,6 +90,14 @@ class SupervisorNode(Node):
     - ``publish_rate`` (double [Hz], default 20.0): rate of the metrics.
     - ``enabled`` (bool, default true): false makes every robot publish zero
       ``cmd_vel``; also set by the ``/swarm/enable`` service.
+    - ``arena`` (double[4] [m] x_min, x_max, y_min, y_max, or empty, default: the
+      scenario's, empty): the rectangle in ``odom`` the arena keeper
+      (:mod:`aes_ros.arena`) keeps the swarm in; empty switches the keeper off.
+    - ``arena_policy`` (string, ``turn`` | ``stop``, default: the scenario's, ``turn``):
+      when the command points out through a wall a robot is near, turn
+      ``desired_direction`` towards the arena's centre, or set ``enabled`` false.
+    - ``arena_margin`` (double [m], default: the scenario's, 0.17): distance from a
+      wall at which the keeper acts.
     - ``alpha`` … ``d_theta`` (double, default: the scenario's): the gains used
       for the metrics' force (only k, w_l, w_r matter).
     - ``scenario`` (string, default ``combined``), ``num_robots`` (int, default 0),
@@ -86,6 +107,12 @@ class SupervisorNode(Node):
     ``desired_direction`` and ``rotation_rate`` like a parameter set, so
     ``ros2 param get`` agrees. In centroid mode ``/swarm/rotation_center`` is
     published for every ``/swarm/poses`` message, stamped with its stamp.
+
+    With an ``arena`` the keeper looks at every ``/swarm/poses``; what it does goes
+    through the parameters like any other set (so the command is published as
+    usual, and ``ros2 param get`` agrees) and is logged as a
+    :data:`~aes_ros.ros.interface.LOG_EVENT` line, which the launcher writes to the
+    run's ``events.csv``.
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -128,6 +155,7 @@ class SupervisorNode(Node):
         self.declare_parameter(
             "enabled", True, rp.bool_descriptor("false: every robot publishes zero cmd_vel")
         )
+        self._declare_arena(scen.values)
         rp.guard_parameters(self, self._check, self._apply_parameters)
 
         #: Messages published so far, per topic.
@@ -147,7 +175,21 @@ class SupervisorNode(Node):
         self._poses_new = False
         self._timer = None
         self._state: dict[str, Any] = {}
+        self._keeper = KeeperState()
         self._apply_parameters()
+
+    def _declare_arena(self, scenario: dict[str, Any]) -> None:
+        """``arena`` (dynamically typed: an empty array of any type or four numbers, as
+        ``ros2 param set`` gives them), ``arena_policy``, ``arena_margin``."""
+        descriptor = rp.descriptor(PARAMS["arena"])
+        descriptor.dynamic_typing = True
+        arena = self.declare_parameter("arena", [float(v) for v in scenario["arena"]], descriptor)
+        if len(arena.value) == 0 and arena.type_ != Parameter.Type.DOUBLE_ARRAY:
+            # an empty list declares a byte array; show an empty double array instead
+            self.set_parameters([Parameter("arena", Parameter.Type.DOUBLE_ARRAY, [])])
+        for name in ("arena_policy", "arena_margin"):
+            spec = PARAMS[name]
+            self.declare_parameter(name, rp.to_ros_value(spec, scenario[name]), rp.descriptor(spec))
 
     # --- parameters -------------------------------------------------------------------
 
@@ -160,6 +202,8 @@ class SupervisorNode(Node):
         reason = rp.check([Parameter(n, value=value(n)) for n in GAIN_FIELDS])
         if reason is not None:
             return reason
+        if not isinstance(value("arena"), list | tuple | array.array):
+            return f"arena: {value('arena')!r} is not allowed; expected {PARAMS['arena'].allowed()}"
         for name, spec in _SPEC_OF.items():
             raw = value(name)
             try:
@@ -191,6 +235,9 @@ class SupervisorNode(Node):
             if self._timer is not None:
                 self.destroy_timer(self._timer)
             self._timer = self.create_timer(1.0 / p["publish_rate"], self.on_timer)
+        if _changed(old, p, *_ARENA_NAMES):
+            self._arena = arena_or_none(list(p["arena"]))
+            self._keeper = KeeperState()
 
     def _publish_velocity(self) -> None:
         msg = TwistStamped()
@@ -260,6 +307,39 @@ class SupervisorNode(Node):
         self._poses_new = True
         if self._centroid_mode:
             self._publish_center()
+        if self._arena is not None:
+            self._keep_in_arena(xy)
+
+    def _keep_in_arena(self, xy: np.ndarray) -> None:
+        """The arena keeper (:func:`aes_ros.arena.keep_in_arena`): turn or stop the swarm
+        before a robot leaves the arena, through the parameters; log what it did."""
+        old = self._direction
+        decision = keep_in_arena(
+            xy,
+            old,
+            self._arena,
+            self._keeper,
+            policy=self._state["arena_policy"],
+            margin=self._state["arena_margin"],
+        )
+        self._keeper = decision.state
+        if decision.action == "turn":
+            # |v_d| kept, but each component within its range
+            new = np.asarray(decision.direction)
+            new /= max(1.0, float(np.abs(new).max()) / PARAMS["direction"].high)
+            decision = replace(decision, direction=(float(new[0]), float(new[1])))
+            change = Parameter(
+                "desired_direction", Parameter.Type.DOUBLE_ARRAY, list(decision.direction)
+            )
+        elif decision.action == "stop" and self._state["enabled"]:
+            change = Parameter("enabled", Parameter.Type.BOOL, False)
+        else:
+            return
+        result = self.set_parameters([change])[0]
+        if not result.successful:
+            self._warn(f"arena keeper: cannot set {change.name}: {result.reason}")
+            return
+        self.get_logger().warning(f"{names.LOG_EVENT} {decision.describe(old)}")
 
     def on_timer(self) -> None:
         """Publish ψ (E8), ψ_heading (E7) and F (E9) of the latest poses."""

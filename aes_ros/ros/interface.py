@@ -116,6 +116,10 @@ RECORDER_STARTED = "recording to"
 #: The recorder, once every robot's cmd_vel and every supervisor topic has a publisher.
 RECORDER_MATCHED_ALL = "found the publishers of every robot and of the supervisor"
 
+#: Before a line a process logs for the run's event log (``events.csv``): the event,
+#: then ``; `` and what the process did about it (the supervisor's arena keeper).
+LOG_EVENT = "swarm event:"
+
 
 #: Exit code of a recorder that stopped because it could not write (disk full):
 #: restarting it would fail again.

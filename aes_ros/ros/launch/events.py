@@ -6,6 +6,11 @@ latest sim time the launcher saw; empty before the first poses), ``process``,
 (what the launcher did about it). Every line is written with one ``os.write`` of
 a whole line to a file opened for appending, so the file holds every event up to
 a crash of the launcher itself and is never left with half a line.
+
+Besides the launcher's own events (faults, restarts, recoveries), a process can
+report one by logging a line with :data:`~aes_ros.ros.interface.LOG_EVENT`
+(:class:`LogEvents`): the supervisor's arena keeper does when it turns or stops
+the swarm.
 """
 
 from __future__ import annotations
@@ -15,10 +20,13 @@ import io
 import os
 import signal
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
+from typing import Protocol
+
+from aes_ros.ros import interface as names
 
 COLUMNS = ("wall_time", "sim_time", "process", "event", "exit", "action")
 
@@ -109,6 +117,66 @@ class EventLog:
         if self._fd is not None:
             os.close(self._fd)
             self._fd = None
+
+
+def parse_log_event(line: str) -> tuple[str, str] | None:
+    """(event, action) of a log line holding :data:`~aes_ros.ros.interface.LOG_EVENT`
+    (``… swarm event: <event>; <action>``), or None for any other line."""
+    _, marker, text = line.partition(names.LOG_EVENT)
+    if not marker:
+        return None
+    event, _, action = text.strip().partition("; ")
+    return event.strip(), action.strip()
+
+
+class _Logging(Protocol):
+    name: str
+    log: Path
+
+
+class LogEvents:
+    """Takes the events that processes report in their logs into an :class:`EventLog`.
+
+    ``sources``: the names of the processes whose logs are read (the supervisor by
+    default; reading every robot's log at each poll would cost more than it tells).
+    Each log is read on from where the last :meth:`check` stopped, whole lines only,
+    so every line is taken once, those of a restarted process (appended to the same
+    log) too. ``sim_time`` gives the event's sim time: the latest the launcher saw.
+    """
+
+    def __init__(
+        self,
+        events: EventLog,
+        sim_time: Callable[[], float | None],
+        sources: Iterable[str] = (names.SUPERVISOR_NODE,),
+    ) -> None:
+        self.events = events
+        self.sim_time = sim_time
+        self.sources = frozenset(sources)
+        self._offsets: dict[Path, int] = {}
+
+    def check(self, children: Iterable[_Logging]) -> None:
+        """Record the event lines the logs of ``children`` (of :attr:`sources`) got."""
+        logs = {Path(c.log): c.name for c in children if c.name in self.sources}
+        for log, name in logs.items():
+            for line in self._new_lines(log):
+                event = parse_log_event(line)
+                if event is not None:
+                    self.events.record(name, event[0], action=event[1], sim_time=self.sim_time())
+
+    def _new_lines(self, log: Path) -> list[str]:
+        offset = self._offsets.get(log, 0)
+        try:
+            if log.stat().st_size <= offset:
+                return []
+            with open(log, "rb") as fh:
+                fh.seek(offset)
+                data = fh.read()
+        except OSError:
+            return []
+        end = data.rfind(b"\n") + 1  # whole lines only: the rest is still being written
+        self._offsets[log] = offset + end
+        return data[:end].decode(errors="replace").splitlines()
 
 
 def fault_summary(events: list[Event], given_up: list[str]) -> str:

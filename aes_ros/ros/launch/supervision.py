@@ -12,7 +12,9 @@
 The run cannot go on without the bridge: when it is given up on (or with
 ``continue``/``stop``) :class:`RunCannotContinueError` ends the run. Every death, restart
 and recovery (the restarted process printed its ready signal) goes to the
-:class:`~aes_ros.ros.launch.events.EventLog`.
+:class:`~aes_ros.ros.launch.events.EventLog`, and so do the events the supervisor
+reports in its log (:class:`~aes_ros.ros.launch.events.LogEvents`: the arena
+keeper turning or stopping the swarm).
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.launch.events import EventLog, exit_text
+from aes_ros.ros.launch.events import EventLog, LogEvents, exit_text
 from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import Child, ProcessSet
 from aes_ros.ros.launch.recovery import Backoff, RestartPolicy
@@ -75,12 +77,18 @@ class Supervision:
     _due: dict[str, tuple[float, float]] = field(default_factory=dict)
     _recovering: dict[str, _Recovering] = field(default_factory=dict)
     _policies: dict[str, RestartPolicy] = field(default_factory=dict)
+    _log_events: LogEvents = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._log_events = LogEvents(self.events, self.sim_time)
 
     def check(self) -> None:
-        """Handle new deaths, start the restarts that are due, notice recoveries.
+        """Take the events reported in the logs, handle new deaths, start the restarts
+        that are due, notice recoveries.
 
         Raises RunCannotContinueError when the run cannot go on.
         """
+        self._log_events.check(self.procs.children)
         now = self.clock()
         for child in list(self.procs.children):
             if child.proc.poll() is not None and id(child) not in self._handled:
