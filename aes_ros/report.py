@@ -150,6 +150,14 @@ def summary(table: dict[str, np.ndarray], label: str, n_robots: int, runs: int =
     )
 
 
+def progress(t: float, positions: np.ndarray, headings: np.ndarray) -> str:
+    """One line on a run as it goes: sim time ``t`` [s], the centroid [m] and the
+    heading order of one sample (positions (N, 2) [m], headings (N,) [rad])."""
+    c = positions.mean(axis=0)
+    order = float(metrics.heading_order(headings))
+    return f"t = {t:6.1f} s  centroid ({c[0]:+.2f}, {c[1]:+.2f}) m  heading order {order:.3f}"
+
+
 def write_run_outputs(
     out_dir: Path,
     times: np.ndarray,

@@ -27,7 +27,7 @@ import json
 import os
 import shutil
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -96,6 +96,22 @@ class RunWriter:
         self._pending.append((t, positions, headings))
         if self._clock() - self._last_flush >= self.flush_every:
             self.flush()
+
+    def add_from(
+        self,
+        times: Sequence[float],
+        positions: Sequence[np.ndarray],
+        headings: Sequence[np.ndarray],
+        start: int,
+        t_end: float,
+    ) -> int:
+        """:meth:`add` samples ``start``, ``start + 1``, … of growing sequences up to sim
+        time ``t_end`` [s]; returns the index of the first sample not added."""
+        k = start
+        while k < len(times) and times[k] <= t_end:
+            self.add(times[k], positions[k], headings[k])
+            k += 1
+        return k
 
     def flush(self) -> None:
         """Write the pending samples (and their metrics rows) to disk."""

@@ -14,11 +14,12 @@ shuts rclpy down in order.
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 
 import rclpy
 from rclpy.duration import Duration
@@ -49,6 +50,22 @@ STARTUP_ERRORS = (
 FLUSH_POLL_NS = 2_000_000
 
 
+@contextlib.contextmanager
+def stop_signals(handler: Callable[[str], None]) -> Iterator[None]:
+    """While active, SIGINT and SIGTERM call ``handler`` with the signal's name instead
+    of ending the process (in the main thread only, as :func:`signal.signal`)."""
+
+    def on_signal(signum: int, _frame: object) -> None:
+        handler(signal.Signals(signum).name)
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
 def spin(nodes: list[Node], executor: Executor | None = None) -> str:
     """Spin ``nodes`` on one EventsExecutor (or ``executor``) until SIGINT or SIGTERM (or
     rclpy shuts down).
@@ -65,26 +82,24 @@ def spin(nodes: list[Node], executor: Executor | None = None) -> str:
     # One per slice: rclpy's own executors add a done-callback per call.
     slice_done = [Future()]
 
-    def on_signal(signum: int, _frame: object) -> None:
-        received.append(signal.Signals(signum).name)
+    def on_signal(name: str) -> None:
+        received.append(name)
         stop.set()
         if not slice_done[0].done():
             slice_done[0].set_result(received[0])
 
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
-    executor = EventsExecutor() if executor is None else executor
-    for node in nodes:
-        executor.add_node(node)
-    try:
-        while not stop.is_set() and rclpy.ok():
-            # A slice handles every event that comes within SPIN_SLICE in C++;
-            # spin_once returned to Python after each one (18 % more CPU per message).
-            slice_done[0] = Future()
-            executor.spin_until_future_complete(slice_done[0], timeout_sec=SPIN_SLICE)
-    finally:
-        executor.shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+    with stop_signals(on_signal):
+        executor = EventsExecutor() if executor is None else executor
+        for node in nodes:
+            executor.add_node(node)
+        try:
+            while not stop.is_set() and rclpy.ok():
+                # A slice handles every event that comes within SPIN_SLICE in C++;
+                # spin_once returned to Python after each one (18 % more CPU per message).
+                slice_done[0] = Future()
+                executor.spin_until_future_complete(slice_done[0], timeout_sec=SPIN_SLICE)
+        finally:
+            executor.shutdown()
     if rclpy.ok() and not flush_publishers(nodes, FLUSH_TIMEOUT) and nodes:
         nodes[0].get_logger().warning(
             f"stopping with messages not acknowledged by every reader after {FLUSH_TIMEOUT} s"

@@ -108,3 +108,19 @@ def test_a_full_disk_stops_the_writer_and_keeps_what_was_written(
     assert writer.finish() == ""  # nothing more is written; the parts stay for `report`
     assert len(rows(tmp_path / "metrics.csv")) == kept
     assert len(load_trajectory(tmp_path).times) >= kept
+
+
+def test_add_from_takes_growing_samples_where_it_stopped_up_to_t_end(tmp_path: Path, run) -> None:
+    """What the launcher streams: its monitor's lists grow between calls."""
+    sc, result = run
+    times = list(result.times)
+    positions, headings = list(result.positions[0]), list(result.headings[0])
+    writer = RunWriter(tmp_path, sc, "combined (ROS)", clock=Clock())
+    t_end = times[30]
+    k = writer.add_from(times[:10], positions, headings, 2, t_end)
+    assert k == 10
+    k = writer.add_from(times, positions, headings, k, t_end)
+    assert k == 31 and writer.add_from(times, positions, headings, k, t_end) == 31
+    writer.finish()
+    traj = load_trajectory(tmp_path / "trajectory.npz")
+    np.testing.assert_array_equal(traj.times, result.times[2:31])

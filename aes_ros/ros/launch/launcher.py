@@ -48,30 +48,29 @@ import contextlib
 import math
 import os
 import shutil
-import signal
 import sys
-import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from aes_ros import metrics
+from aes_ros.report import progress
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch import preflight
 from aes_ros.ros.launch.events import Event, EventLog, fault_summary
-from aes_ros.ros.launch.monitor import TIME_EPS, Monitor
+from aes_ros.ros.launch.monitor import DISCOVERY_WAIT, TIME_EPS, Monitor
 from aes_ros.ros.launch.plan import (
     LaunchConfig,
     LaunchError,
     ProcessSpec,
     dashboard_command,
+    describe,
     node_commands,
     recorder_command,
-    resolved_layout,
+    work_directory,
     write_robot_params,
     write_scenario,
 )
@@ -79,16 +78,8 @@ from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
 from aes_ros.ros.launch.reaper import start_reaper
 from aes_ros.ros.launch.recovery import RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
+from aes_ros.ros.spin import stop_signals
 from aes_ros.run_writer import RunWriter
-
-#: A robot has moved once its position changed by more than this [m] or its heading [rad].
-MOVE_EPS = 1e-6
-#: Wall seconds of discovery before deciding that no other swarm is in the domain.
-DISCOVERY_WAIT = 1.0
-#: Wall seconds from the start during which the launcher keeps looking for another
-#: swarm: a participant without this launch's Fast DDS profile announces itself only
-#: every 3 s, and its answer to a newcomer can go astray.
-OTHER_SWARM_WINDOW = 6.0
 
 
 @dataclass
@@ -132,13 +123,7 @@ class Launcher:
         self.config = config
         self.say = say
         self._own_work_dir = config.work_dir is None and config.out_dir is None
-        if config.work_dir is not None:
-            self.work_dir = Path(config.work_dir)
-        elif config.out_dir is not None:
-            self.work_dir = Path(config.out_dir)
-        else:
-            self.work_dir = Path(tempfile.mkdtemp(prefix="aes-launch-"))
-        self.work_dir.mkdir(parents=True, exist_ok=True)
+        self.work_dir = work_directory(config)
         logs = self.work_dir / "logs"
         logs.mkdir(exist_ok=True)
         self.procs = ProcessSet(logs, fastdds_environment(dict(os.environ)), pid_file=logs / "pids")
@@ -160,7 +145,6 @@ class Launcher:
         self._streamed = 0
         self._t_end = math.inf
         self._reaper_pipe: int | None = None
-        self._checked_at = 0.0
 
     @property
     def wall_time(self) -> float:
@@ -173,22 +157,11 @@ class Launcher:
         """End :meth:`wait_until_moving` / :meth:`run` at the next poll."""
         self.stop_reason = reason
 
-    @contextlib.contextmanager
-    def signals_stop(self) -> Iterator[None]:
+    def signals_stop(self) -> contextlib.AbstractContextManager[None]:
         """While active, SIGINT/SIGTERM end the run instead of killing the launcher."""
         if threading.current_thread() is not threading.main_thread():
-            yield
-            return
-
-        def handler(signum: int, _frame: object) -> None:
-            self.request_stop(signal.Signals(signum).name)
-
-        old = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
-        try:
-            yield
-        finally:
-            for s, h in old.items():
-                signal.signal(s, h)
+            return contextlib.nullcontext()
+        return stop_signals(self.request_stop)
 
     # -- steps ---------------------------------------------------------------------------
 
@@ -210,7 +183,7 @@ class Launcher:
             record = Path(cfg.record).resolve()
             self._specs["recorder"] = recorder_command(record, n, sys.executable)
             self.recorder = self.procs.start(*self._specs["recorder"])
-            self._wait_signal(self.recorder, names.RECORDER_STARTED, 30.0)
+            self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
         bridge = self.procs.start(*bridge_spec)
         if cfg.lockstep or self.recorder is not None:
             # The bridge and the supervisor first: the robots start only once the
@@ -219,10 +192,10 @@ class Launcher:
             # missed (at full speed a run can be over before a late reader matches).
             supervisor = self.procs.start(*supervisor_spec)
             self._wait_first_poses(bridge)
-            self._wait_signal(supervisor, names.SUPERVISOR_RECEIVING_POSES, cfg.start_timeout)
+            supervisor.wait_for(names.SUPERVISOR_RECEIVING_POSES, cfg.start_timeout, self._stopping)
             if self.recorder is not None:
                 receiving = names.recorder_receiving(names.POSES)
-                self._wait_signal(self.recorder, receiving, cfg.start_timeout)
+                self.recorder.wait_for(receiving, cfg.start_timeout, self._stopping)
                 # Paused until the recorder has found every robot's and the
                 # supervisor's publishers: on a loaded machine discovery can take
                 # seconds, and what a writer sends before the reader knows it is
@@ -231,7 +204,9 @@ class Launcher:
             for spec in robot_specs:
                 self.procs.start(*spec)
             if self.recorder is not None:
-                self._wait_signal(self.recorder, names.RECORDER_MATCHED_ALL, cfg.start_timeout)
+                self.recorder.wait_for(
+                    names.RECORDER_MATCHED_ALL, cfg.start_timeout, self._stopping
+                )
                 self.monitor.pause_bridge(False, cfg.start_timeout)
         else:
             # Everything at once: each process spends ~1 s starting Python and
@@ -246,43 +221,27 @@ class Launcher:
             self._specs, self.monitor, self.procs.log_dir / "world_state.npz", cfg.record, n
         )
         self.supervision = Supervision(
-            self.procs, self.events, cfg.on_failure, restart, self._sim_time
+            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time
         )
-        hosts = len(robot_specs)
-        self.say(
-            f"launch: {n} robots, layout {resolved_layout(cfg)} ({hosts} robot process"
-            f"{'es' if hosts != 1 else ''}), neighbours from {cfg.neighbor_source}, "
-            f"{cfg.mode} mode{', lockstep' if cfg.lockstep else ''}, "
-            f"real-time factor {cfg.real_time_factor:g}, on failure {cfg.on_failure}; "
-            f"logs in {self.procs.log_dir}"
-        )
+        self.say(f"launch: {describe(cfg, len(robot_specs))}; logs in {self.procs.log_dir}")
 
     def _start_dashboard(self, scenario_file: Path) -> None:
         """Start the browser dashboard and say its URL (from its ready line)."""
         spec = dashboard_command(self.config, scenario_file)
         self._specs[spec.name] = spec
         child = self.procs.start(*spec)
-        self._wait_signal(child, names.DASHBOARD_READY, 30.0)
-        for line in child.tail(100_000).splitlines():
-            if names.DASHBOARD_READY in line:
-                url = line.split(names.DASHBOARD_READY, 1)[1].strip()
-                self.say(f"launch: dashboard at {url}")
-                break
+        child.wait_for(names.DASHBOARD_READY, 30.0, self._stopping)
+        if (url := child.line_after(names.DASHBOARD_READY)) is not None:
+            self.say(f"launch: dashboard at {url}")
+
+    def _stopping(self) -> bool:
+        return self.stop_reason is not None
 
     def _check_start(self) -> None:
-        """In the first OTHER_SWARM_WINDOW s: a second swarm that discovery shows only
-        now (before any fault: a dead process stays in the graph for a while)."""
-        now = time.monotonic()
-        faults = self.events is not None and self.events.events
-        if self.wall_time > OTHER_SWARM_WINDOW or faults:
-            return
-        if now - self._checked_at > 0.5:
-            self._checked_at = now
-            preflight.refuse_other_swarm(self.monitor.second_swarm())
-
-    def _sim_time(self) -> float | None:
-        mon = self.monitor
-        return mon.times[-1] if mon is not None and mon.times else None
+        """Early on: a second swarm that discovery shows only now (before any fault:
+        a dead process stays in the graph for a while)."""
+        if not (self.events is not None and self.events.events):
+            preflight.refuse_other_swarm(self.monitor.late_second_swarm(self.wall_time))
 
     def _wait_first_poses(self, bridge: Child) -> None:
         deadline = time.monotonic() + self.config.start_timeout
@@ -297,29 +256,6 @@ class Launcher:
                 raise LaunchError(
                     f"no /swarm/poses from sim_bridge within {self.config.start_timeout:.0f} s"
                 )
-
-    def _wait_signal(self, child: Child, ready: str, timeout: float) -> None:
-        """Wait until ``child`` printed the ready signal ``ready`` (:mod:`interface`)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if ready in child.tail(100_000) or self.stop_reason is not None:
-                return
-            if child.proc.poll() is not None:
-                raise LaunchError(
-                    f"{child.name} exited with {child.proc.returncode}:\n{child.tail()}"
-                )
-            time.sleep(0.05)
-        raise LaunchError(f"{child.name} did not start within {timeout:.0f} s")
-
-    def check_children(self) -> None:
-        """Raise LaunchError if a process has exited."""
-        dead = self.procs.dead()
-        if dead:
-            c = dead[0]
-            raise LaunchError(
-                f"{c.name} exited with code {c.proc.returncode} during the run; "
-                f"its log ({c.log}) ends:\n{c.tail()}"
-            )
 
     def spin_for(self, seconds: float) -> None:
         """Keep sampling (and looking after the processes) for ``seconds`` of wall time."""
@@ -340,16 +276,15 @@ class Launcher:
         mon, writer = self.monitor, self.writer
         if writer is None:
             return
-        while self._streamed < len(mon.times) and mon.times[self._streamed] <= self._t_end:
-            k = self._streamed
-            writer.add(mon.times[k], mon.positions[k], mon.headings[k])
-            self._streamed += 1
+        self._streamed = writer.add_from(
+            mon.times, mon.positions, mon.headings, self._streamed, self._t_end
+        )
         if writer.error is not None and self.failure is None:
             self.failure = f"the outputs are incomplete: {writer.error}"
             self.events.record(
                 "launcher", "cannot write the outputs", action="the swarm runs on; "
                 f"{self.config.out_dir} holds what was written up to sim time "
-                f"{writer.t_written or 0.0:.2f} s", sim_time=self._sim_time(),
+                f"{writer.t_written or 0.0:.2f} s", sim_time=mon.sim_time(),
             )  # fmt: skip
 
     def wait_until_moving(self) -> float:
@@ -361,37 +296,26 @@ class Launcher:
         mon = self.monitor
         assert mon is not None, "start() first"
         deadline = time.monotonic() + self.config.start_timeout
-        checked = 0
-        moved = np.zeros(mon.n, dtype=bool)
-        last_unmoved = 0
         while self.stop_reason is None:
             mon.spin_once(0.05)
-            self.check_children()
+            self.procs.check_alive()
             self._check_start()
-            while checked < len(mon.times):
-                p0, h0 = mon.positions[0], mon.headings[0]
-                dp = np.linalg.norm(mon.positions[checked] - p0, axis=-1)
-                dh = np.abs(np.angle(np.exp(1j * (mon.headings[checked] - h0))))
-                moved |= (dp > MOVE_EPS) | (dh > MOVE_EPS)
-                if not moved.all():
-                    last_unmoved = checked
-                checked += 1
-                if moved.all():
-                    self.go_index = last_unmoved
-                    self.t_go = mon.times[last_unmoved]
-                    self._begin_outputs()
-                    self.say(
-                        f"launch: all {mon.n} robots moving at sim time "
-                        f"{mon.times[checked - 1]:.2f} s (wall {self.wall_time:.1f} s)"
-                    )
-                    return self.t_go
+            if (moved_at := mon.all_moving()) is not None:
+                self.go_index = mon.last_unmoved
+                self.t_go = mon.times[self.go_index]
+                self._begin_outputs()
+                self.say(
+                    f"launch: all {mon.n} robots moving at sim time "
+                    f"{mon.times[moved_at]:.2f} s (wall {self.wall_time:.1f} s)"
+                )
+                return self.t_go
             if time.monotonic() > deadline:
-                stuck = np.flatnonzero(~moved).tolist()
+                stuck = np.flatnonzero(~mon.moved).tolist()
                 raise LaunchError(
                     f"not every robot moved within {self.config.start_timeout:.0f} s "
                     f"({len(mon.times)} pose samples; still at rest: {stuck[:20]})"
                 )
-        self.t_go = mon.times[last_unmoved] if mon.times else 0.0
+        self.t_go = mon.times[mon.last_unmoved] if mon.times else 0.0
         return self.t_go
 
     def _begin_outputs(self) -> None:
@@ -423,20 +347,11 @@ class Launcher:
                 )
             now = mon.times[-1] if mon.times else 0.0
             if now >= next_report - TIME_EPS and now < t_end - TIME_EPS:
-                self._progress(now)
+                line = progress(now, mon.positions[-1], mon.headings[-1])
+                self.say(f"  {line}  [wall {self.wall_time:.1f} s]")
                 next_report += self.config.progress_every
             if now >= t_end - TIME_EPS:
                 return
-
-    def _progress(self, t: float) -> None:
-        mon = self.monitor
-        pos, head = mon.positions[-1], mon.headings[-1]
-        c = pos.mean(axis=0)
-        order = float(metrics.heading_order(head))
-        self.say(
-            f"  t = {t:6.1f} s  centroid ({c[0]:+.2f}, {c[1]:+.2f}) m  "
-            f"heading order {order:.3f}  [wall {self.wall_time:.1f} s]"
-        )
 
     def stop(self) -> list[str]:
         """Stop every process (idempotent); returns the names of SIGKILLed ones."""
@@ -451,36 +366,14 @@ class Launcher:
             os.close(self._reaper_pipe)  # the reaper finds nothing left and exits
             self._reaper_pipe = None
         if self.recorder is not None:
-            lines = last[-1].tail(300).strip().splitlines()
-            self.say(f"launch: {lines[-1] if lines else 'recorder wrote nothing'}")
-        # The last instance of each process: those that died and were restarted had
-        # their say in events.csv.
-        self.exit_codes = {c.name: c.proc.returncode for c in self.procs.children}
-        unclean = {k: v for k, v in self.exit_codes.items() if v != 0 and k not in self.killed}
-        if unclean:
-            listed = ", ".join(f"{k} ({v})" for k, v in unclean.items())
-            self.say(
-                f"launch: exit codes other than 0 (-N: ended by signal N before its node "
-                f"was up): {listed}; logs in {self.procs.log_dir}"
-            )
-        elif not self.killed:
-            self.say(f"launch: all {len(self.exit_codes)} processes stopped cleanly")
-        else:
-            clean = len(self.exit_codes) - len(self.killed)
-            self.say(f"launch: {clean} of {len(self.exit_codes)} processes stopped cleanly")
+            self.say(f"launch: {last[-1].last_line() or 'recorder wrote nothing'}")
+        self.exit_codes = self.procs.exit_codes()
+        self.say(f"launch: {self.procs.stop_summary(self.killed)}")
         return self.killed
 
     def samples(self, t_end: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(times (T,), positions (T, N, 2), headings (T, N)) from the run's start to t_end."""
-        mon = self.monitor
-        times = np.asarray(mon.times[self.go_index :])
-        pos = np.asarray(mon.positions[self.go_index :]).reshape(len(times), mon.n, 2)
-        head = np.asarray(mon.headings[self.go_index :]).reshape(len(times), mon.n)
-        if t_end is not None and len(times):
-            keep = times <= t_end + TIME_EPS
-            keep[: max(1, int(keep.sum()))] = True
-            times, pos, head = times[keep], pos[keep], head[keep]
-        return times, pos, head
+        return self.monitor.samples(self.go_index, t_end)
 
     def cleanup(self, ok: bool) -> None:
         """Remove the temporary work directory of a successful run without out_dir."""

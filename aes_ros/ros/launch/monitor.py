@@ -35,6 +35,14 @@ from aes_ros.ros.qos import LATCHED
 
 #: Tolerance on sim-time comparisons [s].
 TIME_EPS = 1e-6
+#: A robot has moved once its position changed by more than this [m] or its heading [rad].
+MOVE_EPS = 1e-6
+#: Wall seconds of discovery before deciding that no other swarm is in the domain.
+DISCOVERY_WAIT = 1.0
+#: Wall seconds from the start during which the launcher keeps looking for another
+#: swarm: a participant without this launch's Fast DDS profile announces itself only
+#: every 3 s, and its answer to a newcomer can go astray.
+OTHER_SWARM_WINDOW = 6.0
 
 
 class Monitor:
@@ -45,7 +53,8 @@ class Monitor:
     stamp (the bridge was restarted or reset its clock) starts them over.
     ``clock`` is the latest ``/clock`` [s]. ``desired`` and ``enabled`` are the
     supervisor's latest ``/swarm/desired_velocity`` and ``/swarm/enabled`` (what a
-    restarted supervisor is told to carry on with).
+    restarted supervisor is told to carry on with). ``moved`` says which robots have
+    moved from their first sampled pose (:meth:`all_moving`).
     """
 
     def __init__(self, n_robots: int) -> None:
@@ -78,6 +87,11 @@ class Monitor:
         self.restarts = 0
         self.desired: TwistStamped | None = None
         self.enabled: bool | None = None
+        self.moved = np.zeros(n_robots, dtype=bool)
+        #: The last sample in which a robot had not moved yet (the run's start).
+        self.last_unmoved = 0
+        self._move_checked = 0
+        self._swarm_checked_at = 0.0
         # rclpy's EventsExecutor, as in every node: the SingleThreadedExecutor rebuilt its
         # wait set in Python at each spin_once, two thirds of a launcher's samples in
         # py-spy; launcher at 100 robots, 50 Hz: 11-13 % -> 5-6 % of a core (bench_ros).
@@ -145,6 +159,49 @@ class Monitor:
         if len(bridges) > 1:
             return bridges
         return supervisors if len(supervisors) > 1 else []
+
+    def sim_time(self) -> float | None:
+        """The sim time [s] of the latest sample (None before the first)."""
+        return self.times[-1] if self.times else None
+
+    def late_second_swarm(self, elapsed: float) -> list[str]:
+        """:meth:`second_swarm`, looked for at most every 0.5 s while ``elapsed`` (wall
+        seconds since the launch began) is within OTHER_SWARM_WINDOW; else empty."""
+        now = time.monotonic()
+        if elapsed > OTHER_SWARM_WINDOW or now - self._swarm_checked_at <= 0.5:
+            return []
+        self._swarm_checked_at = now
+        return self.second_swarm()
+
+    def all_moving(self) -> int | None:
+        """The sample in which every robot had moved from its first sampled pose (by
+        more than MOVE_EPS), looking at the samples that came since the last call;
+        None until then (:attr:`last_unmoved` is the sample before it)."""
+        while self._move_checked < len(self.times):
+            k = self._move_checked
+            self._move_checked += 1
+            dp = np.linalg.norm(self.positions[k] - self.positions[0], axis=-1)
+            dh = np.abs(np.angle(np.exp(1j * (self.headings[k] - self.headings[0]))))
+            self.moved |= (dp > MOVE_EPS) | (dh > MOVE_EPS)
+            if not self.moved.all():
+                self.last_unmoved = k
+            else:
+                return k
+        return None
+
+    def samples(
+        self, start: int = 0, t_end: float | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(times (T,), positions (T, N, 2), headings (T, N)) from sample ``start`` on,
+        up to sim time ``t_end`` (but at least one)."""
+        times = np.asarray(self.times[start:])
+        pos = np.asarray(self.positions[start:]).reshape(len(times), self.n, 2)
+        head = np.asarray(self.headings[start:]).reshape(len(times), self.n)
+        if t_end is not None and len(times):
+            keep = times <= t_end + TIME_EPS
+            keep[: max(1, int(keep.sum()))] = True
+            times, pos, head = times[keep], pos[keep], head[keep]
+        return times, pos, head
 
     def spin_once(self, timeout: float) -> None:
         """Handle what has arrived, waiting at most ``timeout`` s for it."""

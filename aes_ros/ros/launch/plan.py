@@ -3,9 +3,9 @@
 From a :class:`LaunchConfig` this module makes the effective scenario file, the
 robots' parameter file (standard ``node: ros__parameters:`` layout, so it works
 with ``--params-file`` anywhere) and the command line of every node process in
-the chosen layout (:func:`node_commands`). The launcher
-(:mod:`aes_ros.ros.launch.launcher`) starts them; tests and scripts can run the
-same command lines elsewhere (tests/system/test_multihost.py runs them in
+the chosen layout (:func:`node_commands`; :func:`executable` finds their programs).
+The launcher (:mod:`aes_ros.ros.launch.launcher`) starts them; tests and scripts can
+run the same command lines elsewhere (tests/system/test_multihost.py runs them in
 network namespaces).
 """
 
@@ -13,6 +13,9 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
+import sys
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -140,6 +143,20 @@ class ProcessSpec(NamedTuple):
     argv: list[str]
 
 
+def executable(name: str) -> str:
+    """A console script of this environment (next to the interpreter), else from PATH;
+    a path is returned as it is."""
+    if os.sep in name:
+        return name
+    local = Path(sys.executable).parent / name
+    if local.exists():
+        return str(local)
+    found = shutil.which(name)
+    if found is None:
+        raise LaunchError(f"{name}: console script not found (is aes-swarm installed?)")
+    return found
+
+
 # ----------------------------------------------------------------------------- values
 
 
@@ -173,6 +190,19 @@ def _plain(value: Any) -> Any:
 
 
 # ----------------------------------------------------------------------------- files
+
+
+def work_directory(config: LaunchConfig) -> Path:
+    """Where scenario.yaml, robots.yaml and logs/ go (made if need be): ``work_dir``,
+    else ``out_dir``, else a new temporary directory."""
+    if config.work_dir is not None:
+        path = Path(config.work_dir)
+    elif config.out_dir is not None:
+        path = Path(config.out_dir)
+    else:
+        path = Path(tempfile.mkdtemp(prefix="aes-launch-"))
+    path.mkdir(parents=True, exist_ok=True)
+    return path
 
 
 def write_scenario(scenario: Scenario, path: Path) -> Path:
@@ -353,6 +383,16 @@ def node_commands(
         supervisor_command(config, scenario_file),
         *robot_commands(config, scenario_file, robots_file),
     ]
+
+
+def describe(config: LaunchConfig, hosts: int) -> str:
+    """One line on what a launch runs (``hosts``: its robot processes)."""
+    return (
+        f"{config.num_robots} robots, layout {resolved_layout(config)} ({hosts} robot "
+        f"process{'es' if hosts != 1 else ''}), neighbours from {config.neighbor_source}, "
+        f"{config.mode} mode{', lockstep' if config.lockstep else ''}, "
+        f"real-time factor {config.real_time_factor:g}, on failure {config.on_failure}"
+    )
 
 
 def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:

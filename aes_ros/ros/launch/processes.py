@@ -8,31 +8,15 @@ from __future__ import annotations
 
 import contextlib
 import os
-import shutil
 import signal
 import subprocess
-import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from aes_ros.ros.launch.plan import LaunchError
+from aes_ros.ros.launch.plan import LaunchError, executable
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
-
-
-def executable(name: str) -> str:
-    """A console script of this environment (next to the interpreter), else from PATH;
-    a path is returned as it is."""
-    if os.sep in name:
-        return name
-    local = Path(sys.executable).parent / name
-    if local.exists():
-        return str(local)
-    found = shutil.which(name)
-    if found is None:
-        raise LaunchError(f"{name}: console script not found (is aes-swarm installed?)")
-    return found
 
 
 @dataclass
@@ -51,6 +35,32 @@ class Child:
         except OSError:
             return ""
         return text[-chars:]
+
+    def last_line(self) -> str:
+        """The last line of the log ("" if there is none)."""
+        lines = self.tail(300).strip().splitlines()
+        return lines[-1] if lines else ""
+
+    def line_after(self, text: str) -> str | None:
+        """What follows ``text`` on the first line of the log that holds it (stripped)."""
+        for line in self.tail(100_000).splitlines():
+            if text in line:
+                return line.split(text, 1)[1].strip()
+        return None
+
+    def wait_for(
+        self, text: str, timeout: float, stopped: Callable[[], bool] = lambda: False
+    ) -> None:
+        """Wait until the log holds ``text`` (a ready signal, :mod:`aes_ros.ros.interface`)
+        or ``stopped()``; LaunchError if the process exits or ``timeout`` s pass first."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if text in self.tail(100_000) or stopped():
+                return
+            if self.proc.poll() is not None:
+                raise LaunchError(f"{self.name} exited with {self.proc.returncode}:\n{self.tail()}")
+            time.sleep(0.05)
+        raise LaunchError(f"{self.name} did not start within {timeout:.0f} s")
 
 
 class ProcessSet:
@@ -97,6 +107,16 @@ class ProcessSet:
         """Children that have exited."""
         return [c for c in self.children if c.proc.poll() is not None]
 
+    def check_alive(self) -> None:
+        """LaunchError naming the first child that has exited, with the end of its log."""
+        dead = self.dead()
+        if dead:
+            c = dead[0]
+            raise LaunchError(
+                f"{c.name} exited with code {c.proc.returncode} during the run; "
+                f"its log ({c.log}) ends:\n{c.tail()}"
+            )
+
     def stop(self, children: Sequence[Child], timeout: float) -> list[str]:
         """SIGINT each child's process group, SIGKILL the groups still alive after
         ``timeout`` s. Returns the names of the killed ones."""
@@ -124,6 +144,25 @@ class ProcessSet:
         killed = self.stop(first, timeout) + self.stop(list(last), timeout)
         clean_shared_memory(ros_domain(self.env))
         return killed
+
+    def exit_codes(self) -> dict[str, int]:
+        """Each process's exit code (its last instance: the earlier ones of a restarted
+        process had their say in events.csv)."""
+        return {c.name: c.proc.returncode for c in self.children}
+
+    def stop_summary(self, killed: Sequence[str]) -> str:
+        """One line on how the children stopped (``killed``: those SIGKILLed)."""
+        codes = self.exit_codes()
+        unclean = {k: v for k, v in codes.items() if v != 0 and k not in killed}
+        if unclean:
+            listed = ", ".join(f"{k} ({v})" for k, v in unclean.items())
+            return (
+                "exit codes other than 0 (-N: ended by signal N before its node was up): "
+                f"{listed}; logs in {self.log_dir}"
+            )
+        if not killed:
+            return f"all {len(codes)} processes stopped cleanly"
+        return f"{len(codes) - len(killed)} of {len(codes)} processes stopped cleanly"
 
 
 def _die_with_parent() -> None:

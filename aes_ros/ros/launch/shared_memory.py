@@ -25,7 +25,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from aes_ros.ros.launch.plan import LaunchError
+from aes_ros.ros.launch.plan import LaunchError, executable
 
 #: Where Fast DDS keeps its shared-memory files (Linux).
 SHM_DIR = Path("/dev/shm")
@@ -102,9 +102,6 @@ def abandoned_ports(domain: int) -> tuple[list[Path], list[int]]:
 def _fastdds_tool() -> str | None:
     """``fastdds`` of this environment (next to the interpreter), else from PATH; None
     if there is none."""
-    # Imported here: processes imports this module (ProcessSet.stop_all cleans up).
-    from aes_ros.ros.launch.processes import executable
-
     try:
         return executable("fastdds")
     except LaunchError:
