@@ -311,6 +311,51 @@ def test_host_runs_every_robot(spawn, probe, source):
     assert "Traceback" not in spawn.log(proc).read_text()
 
 
+def wakeups_per_second(pid: int, seconds: float = 1.0) -> float:
+    """How often the threads of process ``pid`` went to sleep of their own accord (their
+    voluntary context switches) per second, over ``seconds``."""
+
+    def count() -> int:
+        total = 0
+        for task in os.listdir(f"/proc/{pid}/task"):
+            with open(f"/proc/{pid}/task/{task}/status") as fh:
+                total += sum(
+                    int(line.split()[1]) for line in fh if line.startswith("voluntary_ctxt")
+                )
+        return total
+
+    before, start = count(), time.monotonic()
+    time.sleep(seconds)
+    return (count() - before) / (time.monotonic() - start)
+
+
+def test_an_idle_odom_host_sleeps_and_a_batch_that_cannot_fill_still_goes_out(spawn, probe):
+    """odom source: a host without odometry coming wakes about as rarely as one without
+    robots to run (polling its batch every 4 ms was ~1000 wake-ups a second); a batch
+    that cannot fill (one robot's odometry of four) goes out all the same, and the host
+    is idle again afterwards."""
+    proc = spawn.start(
+        "aes-robot-host",
+        "--ros-args",
+        *("-p", "scenario:=linear", "-p", "num_robots:=4", "-p", "neighbor_source:=odom"),
+        *NOISE_OFF,
+        name="host",
+    )
+    cmds, _ = record_outputs(probe, 0)
+    odom = probe.publisher(Odometry, robot_topic(0, names.ODOM), SENSOR)  # the host is up
+    time.sleep(1.0)  # past its start
+    assert wakeups_per_second(proc.pid) < 150
+    clock = [1.0]
+
+    def send() -> None:
+        clock[0] += 0.05
+        odom.publish(odom_msg(0.0, 0.0, 0.0, clock[0]))
+
+    probe.until(send, lambda: cmds)
+    time.sleep(0.5)
+    assert wakeups_per_second(proc.pid) < 150
+
+
 def test_lockstep_with_supervisor_equals_offline_model(spawn, probe):
     """Supervisor + host, stepped in lockstep by the test (kinematic unicycle, noise and
     clipping off): the trajectory equals the offline model's, combined scenario with the
