@@ -58,7 +58,8 @@ def detector_parameters(
 
     Measured on 100 robots over 4 × 3 m (5 frames, 0.7 px blur, σ = 2): at
     1600 × 1200 (3.2 px per cell) the defaults find 460 of 500 markers, these
-    497; at 1800 × 1350 492 and 500. What matters is reading the bits:
+    497 (489 in ``bench/bench_camera_render.py --accuracy``'s frames); at
+    1800 × 1350 492 and 500. What matters is reading the bits:
     ``perspectiveRemovePixelPerCell`` 8 (default 4) and
     ``perspectiveRemoveIgnoredMarginPerCell`` 0.25 (0.13) read each cell from
     its blurred centre only; ``adaptiveThreshWinSize`` 3 and 13 (two passes
