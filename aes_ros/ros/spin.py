@@ -16,10 +16,13 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import inspect
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
 
 import rclpy
 from rclpy.duration import Duration
@@ -144,6 +147,10 @@ def run_node_process(
     :data:`STARTUP_ERRORS` error, logged as ``cannot start: <reason>`` under
     ``name``; no traceback).
     """
+    if wants_help(args):
+        # rclpy ignores --help: without this, `aes-robot-host --help` started a swarm
+        print(node_help(make))
+        return 0
     node = None
     try:
         # Inside the try: a bad --params-file is a startup error, not a traceback.
@@ -163,3 +170,24 @@ def run_node_process(
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def wants_help(args: Sequence[str] | None) -> bool:
+    """True when ``-h`` or ``--help`` comes before ``--ros-args`` in the command line
+    (``args``, or ``sys.argv`` when None)."""
+    argv = list(sys.argv[1:] if args is None else args[1:])
+    own = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
+    return "-h" in own or "--help" in own
+
+
+def node_help(make: Callable[[], Node]) -> str:
+    """The help of a node process: how to start it (its module's docstring) and its
+    parameters (its class's docstring)."""
+    module = sys.modules.get(getattr(make, "__module__", ""), None)
+    parts = [
+        f"usage: {Path(sys.argv[0]).name} [--ros-args -p NAME:=VALUE ... "
+        "| --params-file FILE | -r FROM:=TO]",
+        inspect.getdoc(module) if module is not None else None,
+        inspect.getdoc(make),
+    ]
+    return "\n\n".join(part for part in parts if part)
