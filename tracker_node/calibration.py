@@ -38,7 +38,7 @@ import numpy as np
 import yaml
 
 from aes_ros.camera import PinholeCamera
-from aes_ros.markers import N_IDS, ReferenceMarker, RobotMarker
+from aes_ros.markers import N_IDS, ReferenceMarker, RobotMarker, reference_ids
 from tracker_node.detection import Detections, detect_markers
 
 #: The fewest reference markers a calibration accepts.
@@ -180,6 +180,44 @@ def parse_layout(data: Any, source: str = "layout") -> ArenaLayout:
         raise CalibrationError(f"references: ids {twice} appear more than once")
     kwargs = {} if height is None else {"marker_height": height}
     return ArenaLayout(tuple(markers), arena=arena, **kwargs)
+
+
+def corner_layout(
+    arena: Sequence[float], size: float = 0.06, outset: float = 0.05, **kwargs: Any
+) -> ArenaLayout:
+    """A layout with a reference marker of side ``size`` [m] off each corner of
+    ``arena`` ``(x_min, x_max, y_min, y_max)`` [m], ``outset`` [m] outside it in x
+    and y (where no robot drives over it), ids from :func:`reference_ids`; what the
+    launch gives the simulated camera and the tracker (``kwargs``: marker_height)."""
+    x0, x1, y0, y1 = (float(v) for v in arena)
+    places = [(x0 - outset, y0 - outset), (x1 + outset, y0 - outset),
+              (x1 + outset, y1 + outset), (x0 - outset, y1 + outset)]  # fmt: skip
+    refs = tuple(
+        ReferenceMarker(i, x, y, size) for i, (x, y) in zip(reference_ids(4), places, strict=True)
+    )
+    return ArenaLayout(refs, arena=(x0, x1, y0, y1), **kwargs)
+
+
+def save_layout(layout: ArenaLayout, path: Path | str) -> Path:
+    """Write ``layout`` as an ``arena.yaml`` that :func:`load_layout` reads back."""
+    data: dict[str, Any] = {
+        "marker_height": float(layout.marker_height),
+        "references": [
+            {
+                "id": r.marker_id,
+                "x": float(r.x),
+                "y": float(r.y),
+                "size": float(r.size),
+                "yaw": float(r.yaw),
+            }
+            for r in layout.references
+        ],
+    }
+    if layout.arena is not None:
+        data["arena"] = [float(v) for v in layout.arena]
+    path = Path(path)
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
 
 
 def load_layout(path: Path | str) -> ArenaLayout:

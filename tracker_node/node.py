@@ -1,0 +1,232 @@
+"""The tracker node ``/tracker``: robot poses from an overhead camera's markers (SPEC §8).
+
+Start it (the launch does, with ``--tracking camera``)::
+
+    aes-tracker --ros-args -p num_robots:=16 -p layout:=arena.yaml -p use_sim_time:=true
+    aes-tracker --source /dev/video0 --ros-args -p num_robots:=16 -p calibration:=cal.yaml
+    aes-tracker --source run.mp4 --ros-args -p num_robots:=16 -p calibration:=cal.yaml
+
+From ``/arena_camera/image_raw`` + ``/arena_camera/camera_info`` (or, with
+``--source``, frames read by OpenCV from a camera device or a video file, stamped
+with the wall clock when read) it finds the robots' ArUco markers
+(:mod:`tracker_node.detection`), maps them to the arena through a calibration
+(:mod:`tracker_node.calibration`, :mod:`tracker_node.pose`) and publishes
+``/swarm/poses`` with the bridge's contract: index = robot id, stamp = the frame's
+exposure time. A robot not seen in a frame keeps its last pose and its age grows
+(:mod:`tracker_node.tracking`); nothing is published before every robot has been
+seen once. ``/diagnostics`` says once a second what it sees: detected / expected,
+the missing and the lost ids, each robot's age, the reprojection error, frames/s.
+
+The calibration: a file (``calibration``, made by ``aes-swarm calibrate``), or, when
+none is given, one computed from the first frame that shows the reference markers
+of ``layout`` (with the camera_info's intrinsics), as a lab would at the start of
+a session.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseArray
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import CameraInfo, Image
+
+from aes_ros.markers import RobotMarker
+from aes_ros.params import ParameterError
+from aes_ros.ros import interface as names
+from aes_ros.ros import parameters as rp
+from aes_ros.ros.cdr import PoseArrayEncoder, decode_image
+from aes_ros.ros.conversions import BadMessageError
+from aes_ros.ros.node_tools import ThrottledWarnings
+from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
+from aes_ros.ros.spin import run_node_process
+from tracker_node.calibration import Calibration, CalibrationError, calibrate, load_layout
+from tracker_node.detection import detect_markers
+from tracker_node.pose import marker_poses
+from tracker_node.tracking import Tracks
+
+#: The status's name on ``/diagnostics``.
+TRACKER_STATUS = "tracker: robots"
+
+
+class TrackerNode(Node):
+    """The tracker ``tracker``.
+
+    Parameters (read at start)
+    --------------------------
+    num_robots : int, the swarm's size (robot i wears marker id i).
+    calibration : str, a calibration file (``aes-swarm calibrate``); empty: compute
+        one from the first frame with ``layout``'s reference markers.
+    layout : str, the arena layout file (reference markers, marker height).
+    lost_after : float [s], default 0.5: a robot unseen this long is reported lost.
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("tracker", **kwargs)
+        self._warn = ThrottledWarnings(self.get_logger())
+        ro = {"read_only": True}
+        n = self.declare_parameter(
+            "num_robots", 1, rp.int_descriptor("robots (robot i wears id i)", 1, 249, **ro)
+        ).value
+        calibration = self.declare_parameter(
+            "calibration", "", rp.text_descriptor("calibration file; empty: from layout", **ro)
+        ).value
+        layout = self.declare_parameter(
+            "layout", "", rp.text_descriptor("arena layout file (reference markers)", **ro)
+        ).value
+        self.lost_after = self.declare_parameter(
+            "lost_after", 0.5, rp.float_descriptor("unseen this long: lost", "s", 0.01, 60.0)
+        ).value
+        if not calibration and not layout:
+            raise ParameterError("calibration, layout: give one (the camera must be calibrated)")
+        try:
+            self.layout = load_layout(Path(layout)) if layout else None
+            self.calibration = Calibration.load(Path(calibration)) if calibration else None
+        except CalibrationError as exc:
+            raise ParameterError(f"{'calibration' if calibration else 'layout'}: {exc}") from None
+        self.marker = RobotMarker()
+        references = frozenset(r.marker_id for r in self.layout.references) if self.layout else ()
+        self.tracks = Tracks(n, references=frozenset(references))
+        self.encoder = PoseArrayEncoder(n, names.WORLD_FRAME)
+        self.info: tuple[np.ndarray, np.ndarray, tuple[int, int]] | None = None
+        self.frames = 0
+        self.published = 0
+        self._frame_walls: list[float] = []
+        self._reprojection = float("nan")
+        self._stamp_ns = 0
+
+        self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
+        self.diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, LATCHED)
+        self.create_subscription(CameraInfo, names.CAMERA_INFO, self.on_camera_info, SENSOR)
+        self.create_subscription(Image, names.CAMERA_IMAGE, self.on_image, IMAGES, raw=True)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(1.0, self.on_diagnostics, clock=steady)
+
+    # --- inputs -----------------------------------------------------------------------
+
+    def on_camera_info(self, msg: CameraInfo) -> None:
+        """The camera's intrinsics; a broken one is dropped and the last good one kept."""
+        K = np.asarray(msg.k, dtype=float).reshape(3, 3)
+        dist = np.zeros(5)
+        dist[: min(5, len(msg.d))] = np.asarray(msg.d, dtype=float)[:5]
+        if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dist))):
+            self._warn("dropped camera_info: non-finite intrinsics or distortion")
+        elif K[0, 0] <= 0.0 or K[1, 1] <= 0.0:
+            self._warn(f"dropped camera_info: focal length {K[0, 0]:g}, {K[1, 1]:g} px; need > 0")
+        elif msg.width == 0 or msg.height == 0:
+            self._warn(f"dropped camera_info: image size {msg.width}x{msg.height}")
+        else:
+            self.info = (K, dist, (int(msg.width), int(msg.height)))
+
+    def on_image(self, data: bytes) -> None:
+        try:
+            sec, nanosec, _, pixels = decode_image(data)
+        except BadMessageError as exc:
+            self._warn(f"dropped {names.CAMERA_IMAGE}: {exc}")
+            return
+        self.track(sec * 1_000_000_000 + nanosec, pixels)
+
+    # --- the work ---------------------------------------------------------------------
+
+    def track(self, stamp_ns: int, pixels: np.ndarray) -> None:
+        """One frame exposed at ``stamp_ns``: detect, map, remember, publish."""
+        image = pixels if pixels.ndim == 2 else pixels.mean(axis=2).astype(np.uint8)
+        if not self._calibrated(image):
+            return
+        size = (image.shape[1], image.shape[0])
+        if size != self.calibration.image_size:
+            self._warn(
+                f"dropped a frame of {size[0]}x{size[1]} px: the calibration is for "
+                f"{self.calibration.image_size[0]}x{self.calibration.image_size[1]}"
+            )
+            return
+        detected = detect_markers(image)
+        if len(detected.duplicates):
+            self._warn(f"ignored marker ids seen twice in one frame: {list(detected.duplicates)}")
+        positions, headings, error = marker_poses(
+            detected.ids, detected.corners, self.calibration, self.marker
+        )
+        report = self.tracks.update(stamp_ns, detected.ids, positions, headings)
+        if report.unknown:
+            self._warn(f"ignored unknown marker ids {list(report.unknown)}")
+        self.frames += 1
+        self._frame_walls.append(time.monotonic())
+        self._reprojection = error
+        self._stamp_ns = stamp_ns
+        if not self.tracks.complete:
+            self._warn(f"waiting to see robots {self.tracks.missing().tolist()} once")
+            return
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        self.poses_pub.publish(
+            self.encoder.encode(sec, nanosec, self.tracks.positions, self.tracks.headings)
+        )
+        self.published += 1
+
+    def _calibrated(self, image: np.ndarray) -> bool:
+        if self.calibration is not None:
+            return True
+        if self.info is None:
+            self._warn(f"waiting for {names.CAMERA_INFO} to calibrate from the first frame")
+            return False
+        K, dist, size = self.info
+        if size != (image.shape[1], image.shape[0]):
+            self._warn(
+                f"dropped a frame of {image.shape[1]}x{image.shape[0]} px: "
+                f"camera_info says {size[0]}x{size[1]}"
+            )
+            return False
+        try:
+            self.calibration, residuals = calibrate(image, K, dist, self.layout)
+        except CalibrationError as exc:
+            self._warn(f"cannot calibrate from this frame: {exc}")
+            return False
+        self.get_logger().info(f"calibrated from the first frame: {residuals}")
+        return True
+
+    def on_diagnostics(self) -> None:
+        """Once a second: what the tracker sees (detected / expected, missing, lost,
+        ages, reprojection error, frames/s)."""
+        now = time.monotonic()
+        self._frame_walls = [t for t in self._frame_walls if t > now - 2.0]
+        fps = len(self._frame_walls) / 2.0
+        ages = self.tracks.ages(self._stamp_ns)
+        lost = self.tracks.lost(self._stamp_ns, self.lost_after)
+        seen = int(np.count_nonzero(ages == 0.0)) if self.frames else 0
+        level = DiagnosticStatus.OK if len(lost) == 0 and self.frames else DiagnosticStatus.WARN
+        status = DiagnosticStatus(
+            level=level,
+            name=TRACKER_STATUS,
+            message=f"{seen} of {self.tracks.n} robots in the last frame, {len(lost)} lost, "
+            f"{fps:.1f} frames/s",
+            values=[
+                KeyValue(key="detected", value=str(seen)),
+                KeyValue(key="expected", value=str(self.tracks.n)),
+                KeyValue(key="missing", value=" ".join(map(str, np.flatnonzero(ages > 0)))),
+                KeyValue(key="lost", value=" ".join(map(str, lost))),
+                KeyValue(
+                    key="ages_s",
+                    value=" ".join("inf" if np.isinf(a) else f"{a:.2f}" for a in ages),
+                ),
+                KeyValue(key="reprojection_px", value=f"{self._reprojection:.3f}"),
+                KeyValue(key="frames_per_s", value=f"{fps:.1f}"),
+                KeyValue(key="calibrated", value=str(self.calibration is not None).lower()),
+            ],
+        )
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self.diagnostics_pub.publish(msg)
+
+
+def main(args: list[str] | None = None) -> int:
+    """``aes-tracker``: track until SIGINT or SIGTERM."""
+    return run_node_process("tracker", args, TrackerNode)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
