@@ -73,7 +73,7 @@ class ArenaCameraNode(Node):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("arena_camera", **kwargs)
+        super().__init__(names.CAMERA_NODE, **kwargs)
         self._warn = ThrottledWarnings(self.get_logger())
         ro = {"read_only": True}
 
@@ -196,7 +196,7 @@ def arena_camera(
 
 def main(args: list[str] | None = None) -> int:
     """``aes-arena-camera``: the simulated overhead camera until SIGINT or SIGTERM."""
-    return run_node_process("arena_camera", args, ArenaCameraNode)
+    return run_node_process(names.CAMERA_NODE, args, ArenaCameraNode)
 
 
 if __name__ == "__main__":

@@ -68,7 +68,7 @@ class TrackerNode(Node):
     """
 
     def __init__(self, **kwargs: Any) -> None:
-        super().__init__("tracker", **kwargs)
+        super().__init__(names.TRACKER_NODE, **kwargs)
         self._warn = ThrottledWarnings(self.get_logger())
         ro = {"read_only": True}
         n = self.declare_parameter(
@@ -225,7 +225,7 @@ class TrackerNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """``aes-tracker``: track until SIGINT or SIGTERM."""
-    return run_node_process("tracker", args, TrackerNode)
+    return run_node_process(names.TRACKER_NODE, args, TrackerNode)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-from aes_ros.ros.launch.plan import ON_FAILURE
+from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, tracking_arena
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -71,6 +71,33 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="also start the browser dashboard on http://127.0.0.1:PORT/ (default 8080; "
         "0: any free port) and print its URL",
     )  # fmt: skip
+    p.add_argument(
+        "--tracking", choices=TRACKING, default="none",
+        help="camera: the robots take their neighbours' positions from a simulated overhead "
+        "camera and the ArUco tracker; the bridge's exact poses go to /sim/ground_truth/poses "
+        "(the outputs' source). The arena (--set arena=[x0,x1,y0,y1], else the formation "
+        "with 0.5 m around it) is what the camera sees and what the supervisor keeps the "
+        "swarm in",
+    )  # fmt: skip
+    p.add_argument(
+        "--camera", type=_pixels, default=(1280, 960), metavar="WxH",
+        help="the simulated camera's resolution (default 1280x960)",
+    )  # fmt: skip
+    p.add_argument(
+        "--camera-rate", type=number_type(float, 0.1, 240.0), default=20.0, metavar="HZ",
+        help="the simulated camera's frames per second of sim time (default 20)",
+    )  # fmt: skip
+
+
+def _pixels(text: str) -> tuple[int, int]:
+    """``WxH`` in pixels, each 16 … 8192."""
+    try:
+        width, height = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected WxH, e.g. 1280x960") from None
+    if not (16 <= width <= 8192 and 16 <= height <= 8192):
+        raise argparse.ArgumentTypeError(f"{text!r}: each side 16 … 8192 px")
+    return width, height
 
 
 def run(args: argparse.Namespace) -> int:
@@ -78,6 +105,9 @@ def run(args: argparse.Namespace) -> int:
 
     sc = load_scenario(args)
     overrides = scenario.parse_assignments(args.set)
+    if args.tracking != "none" and not sc.arena:
+        # the camera sees this arena: the supervisor keeps the swarm in it
+        sc = sc.with_overrides({"arena": list(tracking_arena(sc))}, "--tracking")
     config = LaunchConfig(
         scenario=sc,
         label=f"{scenario_label(args)} (ROS)",
@@ -94,6 +124,9 @@ def run(args: argparse.Namespace) -> int:
         clip=bool(sc.clip) if "clip" in overrides else None,
         on_failure=args.on_failure,
         dashboard=args.dashboard,
+        tracking=args.tracking,
+        camera_size=args.camera,
+        camera_rate=args.camera_rate,
     )
     try:
         result = launch(config, say=lambda line: print(line, flush=True))

@@ -60,6 +60,9 @@ CAMERA_INFO = "/arena_camera/camera_info"
 #: The bridge's exact poses while a tracker publishes /swarm/poses: for evaluation only,
 #: never read by the control loop.
 GROUND_TRUTH_POSES = "/sim/ground_truth/poses"
+#: The simulated camera's and the tracker's node names.
+CAMERA_NODE = "arena_camera"
+TRACKER_NODE = "tracker"
 #: The frame of the camera's images (REP-105 style: a sensor frame of its own).
 CAMERA_FRAME = "arena_camera"
 #: diagnostic_msgs/DiagnosticArray: the bridge's view of which robots are silent

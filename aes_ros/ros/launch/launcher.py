@@ -70,7 +70,9 @@ from aes_ros.ros.launch.plan import (
     describe,
     node_commands,
     recorder_command,
+    tracking_commands,
     work_directory,
+    write_layout,
     write_robot_params,
     write_scenario,
 )
@@ -175,16 +177,22 @@ class Launcher:
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
         self.events = EventLog(self.work_dir / "events.csv", self.say)
         self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
-        self.monitor = Monitor(n)
+        # Tracked, the outputs are made of the exact poses; the robots read the tracker's.
+        truth = names.POSES if cfg.tracking == "none" else names.GROUND_TRUTH_POSES
+        self.monitor = Monitor(n, truth)
         preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
         bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
-        self._specs = {spec.name: spec for spec in (bridge_spec, supervisor_spec, *robot_specs)}
+        tracking_specs = tracking_commands(cfg, write_layout(cfg, self.work_dir / "arena.yaml"))
+        specs = (bridge_spec, *tracking_specs, supervisor_spec, *robot_specs)
+        self._specs = {spec.name: spec for spec in specs}
         if cfg.record is not None:
             record = Path(cfg.record).resolve()
             self._specs["recorder"] = recorder_command(record, n, sys.executable)
             self.recorder = self.procs.start(*self._specs["recorder"])
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
         bridge = self.procs.start(*bridge_spec)
+        for spec in tracking_specs:
+            self.procs.start(*spec)
         if cfg.lockstep or self.recorder is not None:
             # The bridge and the supervisor first: the robots start only once the
             # launcher, the supervisor (and the recorder) receive /swarm/poses, so

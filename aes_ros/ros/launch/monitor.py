@@ -57,7 +57,7 @@ class Monitor:
     moved from their first sampled pose (:meth:`all_moving`).
     """
 
-    def __init__(self, n_robots: int) -> None:
+    def __init__(self, n_robots: int, poses_topic: str = names.POSES) -> None:
         self.n = n_robots
         self.context = rclpy.Context()
         with _udp_only():
@@ -67,7 +67,7 @@ class Monitor:
             )
             self.node = rclpy.create_node(names.LAUNCHER_NODE, context=self.context)
         stream = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-        self.node.create_subscription(PoseArray, names.POSES, self.on_poses, stream, raw=True)
+        self.node.create_subscription(PoseArray, poses_topic, self.on_poses, stream, raw=True)
         self.node.create_subscription(
             Clock,
             names.CLOCK,

@@ -30,6 +30,13 @@ from aes_ros.scenario import Scenario
 
 #: What ``--on-failure`` may ask for (:mod:`aes_ros.ros.launch.supervision`).
 ON_FAILURE = ("respawn", "continue", "stop")
+#: Where the robots' neighbour positions come from (``--tracking``): the bridge's exact
+#: poses, or an overhead camera and the tracker (SPEC §8).
+TRACKING = ("none", "camera")
+#: Floor [m] around the formation that a tracking launch's arena adds when the
+#: scenario gives none, and the smallest arena (the issue's 2.0 × 1.5 m at 1280 × 960).
+TRACKING_ROOM = 0.5
+TRACKING_MIN_ARENA = (2.0, 1.5)
 
 
 class LaunchError(RuntimeError):
@@ -56,6 +63,10 @@ class LaunchConfig:
         the lockstep barrier (:mod:`sim_bridge.lockstep`).
     dashboard : start the browser dashboard (:mod:`dashboard_node`) on this port of
         127.0.0.1 (0: any free port); None: no dashboard.
+    tracking : ``camera``: the robots take their neighbours' positions from the
+        simulated overhead camera and the tracker, and the bridge's exact poses go to
+        ``/sim/ground_truth/poses`` (what the launcher's outputs are made of);
+        ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera.
     """
 
     scenario: Scenario
@@ -81,6 +92,9 @@ class LaunchConfig:
     on_failure: str = "respawn"
     lockstep_timeout: float = 2.0
     dashboard: int | None = None
+    tracking: str = "none"
+    camera_size: tuple[int, int] = (1280, 960)
+    camera_rate: float = 20.0
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -94,6 +108,12 @@ class LaunchConfig:
                 _one_of(names.NEIGHBOR_SOURCES),
             ),
             ("mode", self.mode in names.MODES, _one_of(names.MODES)),
+            ("tracking", self.tracking in TRACKING, _one_of(TRACKING)),
+            (
+                "lockstep",
+                not (self.lockstep and self.tracking != "none"),
+                "not with --tracking camera (a camera frame is not a control step)",
+            ),
             ("on_failure", self.on_failure in ON_FAILURE, _one_of(ON_FAILURE)),
             (
                 "lockstep_timeout",
@@ -287,7 +307,11 @@ def bridge_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
     if config.clip is not None:
         params["clip"] = bool(config.clip)
     params.update(config.bridge_params)
-    return ProcessSpec(names.SIM_BRIDGE_NODE, ["aes-sim-bridge", *ros_args(params)])
+    # Tracked: the exact poses are for evaluation only; /swarm/poses is the tracker's.
+    remap = (
+        ["-r", f"{names.POSES}:={names.GROUND_TRUTH_POSES}"] if config.tracking != "none" else []
+    )
+    return ProcessSpec(names.SIM_BRIDGE_NODE, ["aes-sim-bridge", *ros_args(params, *remap)])
 
 
 def supervisor_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
@@ -385,6 +409,54 @@ def node_commands(
     ]
 
 
+def tracking_arena(scenario: Scenario) -> tuple[float, float, float, float]:
+    """The arena a tracking launch's camera sees, ``(x_min, x_max, y_min, y_max)`` [m]:
+    the scenario's ``arena`` (which the supervisor's arena keeper also keeps the swarm
+    in), else the initial formation with :data:`TRACKING_ROOM` around it, at least
+    :data:`TRACKING_MIN_ARENA` and 4:3 like the camera's picture."""
+    if scenario.arena:
+        return tuple(float(v) for v in scenario.arena)  # type: ignore[return-value]
+    xy = scenario.nominal_positions()
+    (x0, y0), (x1, y1) = xy.min(axis=0), xy.max(axis=0)
+    w = max(x1 - x0 + 2 * TRACKING_ROOM, TRACKING_MIN_ARENA[0])
+    h = max(y1 - y0 + 2 * TRACKING_ROOM, TRACKING_MIN_ARENA[1])
+    w, h = max(w, h * 4 / 3), max(h, w * 3 / 4)
+    cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
+    return (round(cx - w / 2, 3), round(cx + w / 2, 3), round(cy - h / 2, 3), round(cy + h / 2, 3))
+
+
+def write_layout(config: LaunchConfig, path: Path) -> Path:
+    """The arena layout of a tracking launch (reference markers off the corners of
+    :func:`tracking_arena`) written to ``path``, for the camera and the tracker."""
+    if config.tracking != "none":
+        from tracker_node.calibration import corner_layout, save_layout
+
+        save_layout(corner_layout(tracking_arena(config.scenario)), path)
+    return path
+
+
+def tracking_commands(config: LaunchConfig, layout_file: Path) -> list[ProcessSpec]:
+    """The simulated overhead camera and the tracker of a ``--tracking camera`` launch
+    (none otherwise), on sim time; ``layout_file``: the arena's reference markers."""
+    if config.tracking == "none":
+        return []
+    width, height = config.camera_size
+    camera = {
+        "arena": list(tracking_arena(config.scenario)),
+        "width": int(width),
+        "height": int(height),
+        "rate": float(config.camera_rate),
+        "layout": str(layout_file),
+        "seed": int(config.seed),
+        "use_sim_time": True,
+    }
+    tracker = {"num_robots": config.num_robots, "layout": str(layout_file), "use_sim_time": True}
+    return [
+        ProcessSpec(names.CAMERA_NODE, ["aes-arena-camera", *ros_args(camera)]),
+        ProcessSpec(names.TRACKER_NODE, ["aes-tracker", *ros_args(tracker)]),
+    ]
+
+
 def describe(config: LaunchConfig, hosts: int) -> str:
     """One line on what a launch runs (``hosts``: its robot processes)."""
     return (
@@ -392,6 +464,13 @@ def describe(config: LaunchConfig, hosts: int) -> str:
         f"process{'es' if hosts != 1 else ''}), neighbours from {config.neighbor_source}, "
         f"{config.mode} mode{', lockstep' if config.lockstep else ''}, "
         f"real-time factor {config.real_time_factor:g}, on failure {config.on_failure}"
+        + (
+            f", positions from the overhead camera ({config.camera_size[0]}x"
+            f"{config.camera_size[1]} px, {config.camera_rate:g} Hz) over the arena "
+            f"{list(tracking_arena(config.scenario))} m"
+            if config.tracking != "none"
+            else ""
+        )
     )
 
 
