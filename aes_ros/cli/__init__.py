@@ -27,6 +27,7 @@ COMMANDS: dict[str, str] = {
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
     "dashboard": "watch and steer the running swarm in the browser",
+    "calibrate": "the overhead camera's pose from one frame of reference markers",
     "report": "rebuild a launch's trajectory, metrics, plots and summary from what is on disk",
 }
 

@@ -1,0 +1,60 @@
+"""``aes-swarm calibrate``: the overhead camera's pose from one frame of reference markers.
+
+Examples::
+
+    aes-swarm calibrate --image frame.png --layout arena.yaml --camera-info camera.yaml \
+        --out calibration.yaml
+
+``--layout`` says where the reference markers lie on the floor (and the robots' marker
+height); ``--camera-info`` gives the camera's intrinsics in the ROS camera_info YAML
+layout (what ``camera_calibration`` writes). The calibration maps image points to the
+arena at the markers' height (:mod:`tracker_node.calibration`); its residuals are
+printed, one line per reference marker. A frame that shows too few reference markers,
+or markers on one line, is refused with what is missing, and nothing is written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--image", type=Path, required=True, help="a frame (PNG, JPEG, …)")
+    p.add_argument("--layout", type=Path, required=True, help="arena.yaml: reference markers")
+    p.add_argument(
+        "--camera-info", type=Path, required=True, metavar="FILE",
+        help="the camera's intrinsics (ROS camera_info YAML)",
+    )  # fmt: skip
+    p.add_argument("--out", type=Path, required=True, help="calibration.yaml to write")
+
+
+def run(args: argparse.Namespace) -> int:
+    import cv2
+
+    from tracker_node.calibration import CalibrationError, calibrate, load_layout
+    from tracker_node.camera_info import load_camera_info
+
+    try:
+        layout = load_layout(args.layout)
+        K, dist, size = load_camera_info(args.camera_info)
+        image = cv2.imread(str(args.image), cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            raise CalibrationError(f"{args.image}: not an image OpenCV can read")
+        if (image.shape[1], image.shape[0]) != size:
+            raise CalibrationError(
+                f"{args.image}: {image.shape[1]}x{image.shape[0]} px, but the camera_info is "
+                f"for {size[0]}x{size[1]}"
+            )
+        calibration, residuals = calibrate(image, K, dist, layout)
+    except CalibrationError as exc:
+        print(f"aes-swarm calibrate: error: {exc}", file=sys.stderr)
+        return 2
+    calibration.save(args.out)
+    print(f"calibrated: {residuals}")
+    for i, px, mm in zip(residuals.ids, residuals.reprojection_px, residuals.arena_mm, strict=True):
+        print(f"  marker {int(i)}: reprojection {px:.3f} px, on the floor {mm:.2f} mm")
+    x, y, z = calibration.camera.center
+    print(f"camera at ({x:.3f}, {y:.3f}) m, {z:.3f} m above the floor; wrote {args.out}")
+    return 0
