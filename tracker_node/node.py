@@ -25,11 +25,13 @@ a session.
 
 from __future__ import annotations
 
+import functools
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseArray
@@ -47,6 +49,7 @@ from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
 from tracker_node.calibration import Calibration, CalibrationError, calibrate, load_layout
+from tracker_node.camera_info import load_camera_info
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses
 from tracker_node.tracking import Tracks
@@ -64,10 +67,16 @@ class TrackerNode(Node):
     calibration : str, a calibration file (``aes-swarm calibrate``); empty: compute
         one from the first frame with ``layout``'s reference markers.
     layout : str, the arena layout file (reference markers, marker height).
+    camera_info : str, the camera's intrinsics (ROS camera_info YAML) for a ``source``
+        with no camera_info topic, to calibrate from its first frame with ``layout``.
     lost_after : float [s], default 0.5: a robot unseen this long is reported lost.
+
+    ``source``: None to read the camera topics; a device (``/dev/video0``, ``0``) or a
+    video file to read frames from with OpenCV, paced at the file's frame rate, each
+    stamped with this node's clock when read.
     """
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, source: str | None = None, **kwargs: Any) -> None:
         super().__init__(names.TRACKER_NODE, **kwargs)
         self._warn = ThrottledWarnings(self.get_logger())
         ro = {"read_only": True}
@@ -80,6 +89,9 @@ class TrackerNode(Node):
         layout = self.declare_parameter(
             "layout", "", rp.text_descriptor("arena layout file (reference markers)", **ro)
         ).value
+        camera_info = self.declare_parameter(
+            "camera_info", "", rp.text_descriptor("intrinsics YAML for --source", **ro)
+        ).value
         self.lost_after = self.declare_parameter(
             "lost_after", 0.5, rp.float_descriptor("unseen this long: lost", "s", 0.01, 60.0)
         ).value
@@ -88,13 +100,13 @@ class TrackerNode(Node):
         try:
             self.layout = load_layout(Path(layout)) if layout else None
             self.calibration = Calibration.load(Path(calibration)) if calibration else None
+            self.info = load_camera_info(Path(camera_info)) if camera_info else None
         except CalibrationError as exc:
-            raise ParameterError(f"{'calibration' if calibration else 'layout'}: {exc}") from None
+            raise ParameterError(f"calibration, layout or camera_info: {exc}") from None
         self.marker = RobotMarker()
         references = frozenset(r.marker_id for r in self.layout.references) if self.layout else ()
         self.tracks = Tracks(n, references=frozenset(references))
         self.encoder = PoseArrayEncoder(n, names.WORLD_FRAME)
-        self.info: tuple[np.ndarray, np.ndarray, tuple[int, int]] | None = None
         self.frames = 0
         self.published = 0
         self._frame_walls: list[float] = []
@@ -103,10 +115,19 @@ class TrackerNode(Node):
 
         self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
         self.diagnostics_pub = self.create_publisher(DiagnosticArray, names.DIAGNOSTICS, LATCHED)
-        self.create_subscription(CameraInfo, names.CAMERA_INFO, self.on_camera_info, SENSOR)
-        self.create_subscription(Image, names.CAMERA_IMAGE, self.on_image, IMAGES, raw=True)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0, self.on_diagnostics, clock=steady)
+        self.capture = None
+        if source is None:
+            self.create_subscription(CameraInfo, names.CAMERA_INFO, self.on_camera_info, SENSOR)
+            self.create_subscription(Image, names.CAMERA_IMAGE, self.on_image, IMAGES, raw=True)
+        else:
+            self.capture = open_source(source)
+            fps = self.capture.get(cv2.CAP_PROP_FPS)
+            period = 1.0 / fps if 0.5 <= fps <= 240.0 else 0.05
+            self.get_logger().info(f"reading {source} at {1.0 / period:g} frames/s")
+            self.source = source
+            self.create_timer(period, self.on_capture, clock=steady)
 
     # --- inputs -----------------------------------------------------------------------
 
@@ -132,11 +153,23 @@ class TrackerNode(Node):
             return
         self.track(sec * 1_000_000_000 + nanosec, pixels)
 
+    def on_capture(self) -> None:
+        """The next frame of ``--source``, stamped now; at the end of a file, stop."""
+        if self.capture is None:
+            return
+        ok, frame = self.capture.read()
+        if not ok:
+            self.get_logger().info(f"{self.source}: no more frames after {self.frames}")
+            self.capture.release()
+            self.capture = None
+            return
+        self.track(self.get_clock().now().nanoseconds, frame)
+
     # --- the work ---------------------------------------------------------------------
 
     def track(self, stamp_ns: int, pixels: np.ndarray) -> None:
         """One frame exposed at ``stamp_ns``: detect, map, remember, publish."""
-        image = pixels if pixels.ndim == 2 else pixels.mean(axis=2).astype(np.uint8)
+        image = pixels if pixels.ndim == 2 else cv2.cvtColor(pixels, cv2.COLOR_BGR2GRAY)
         if not self._calibrated(image):
             return
         size = (image.shape[1], image.shape[0])
@@ -223,9 +256,35 @@ class TrackerNode(Node):
         self.diagnostics_pub.publish(msg)
 
 
+def open_source(source: str) -> cv2.VideoCapture:
+    """An OpenCV capture of a camera device (``/dev/video0`` or its number) or a video
+    file; ParameterError naming the source when it cannot be opened or read."""
+    device = int(source) if source.isdigit() else source
+    capture = cv2.VideoCapture(device)
+    if not capture.isOpened():
+        raise ParameterError(f"--source {source}: OpenCV cannot open it (no such device or file, "
+                             "or not a video it can decode)")  # fmt: skip
+    ok, _ = capture.read()
+    if not ok:
+        capture.release()
+        raise ParameterError(f"--source {source}: opened, but no frame could be read from it")
+    capture.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    return capture
+
+
 def main(args: list[str] | None = None) -> int:
-    """``aes-tracker``: track until SIGINT or SIGTERM."""
-    return run_node_process(names.TRACKER_NODE, args, TrackerNode)
+    """``aes-tracker [--source DEVICE|FILE]``: track until SIGINT or SIGTERM."""
+    argv = list(sys.argv if args is None else args)
+    source = None
+    own = argv[: argv.index("--ros-args")] if "--ros-args" in argv else argv
+    if "--source" in own:
+        at = argv.index("--source")
+        if at + 1 >= len(own):
+            print("aes-tracker: error: --source needs a device or a video file", file=sys.stderr)
+            return 2
+        source = argv[at + 1]
+        del argv[at : at + 2]
+    return run_node_process(names.TRACKER_NODE, argv, functools.partial(TrackerNode, source))
 
 
 if __name__ == "__main__":

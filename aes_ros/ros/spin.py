@@ -183,6 +183,7 @@ def wants_help(args: Sequence[str] | None) -> bool:
 def node_help(make: Callable[[], Node]) -> str:
     """The help of a node process: how to start it (its module's docstring) and its
     parameters (its class's docstring)."""
+    make = getattr(make, "func", make)  # a functools.partial: its function's help
     module = sys.modules.get(getattr(make, "__module__", ""), None)
     parts = [
         f"usage: {Path(sys.argv[0]).name} [--ros-args -p NAME:=VALUE ... "
