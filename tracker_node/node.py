@@ -39,7 +39,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
-from aes_ros.markers import RobotMarker
+from aes_ros.markers import RobotMarker, reference_ids
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
@@ -104,7 +104,10 @@ class TrackerNode(Node):
         except CalibrationError as exc:
             raise ParameterError(f"calibration, layout or camera_info: {exc}") from None
         self.marker = RobotMarker()
-        references = frozenset(r.marker_id for r in self.layout.references) if self.layout else ()
+        # without a layout, the top ids are taken for reference markers (their convention)
+        references = (
+            [r.marker_id for r in self.layout.references] if self.layout else reference_ids(16)
+        )
         self.tracks = Tracks(n, references=frozenset(references))
         self.encoder = PoseArrayEncoder(n, names.WORLD_FRAME)
         self.frames = 0
@@ -224,23 +227,31 @@ class TrackerNode(Node):
 
     def on_diagnostics(self) -> None:
         """Once a second: what the tracker sees (detected / expected, missing, lost,
-        ages, reprojection error, frames/s)."""
+        ages, reprojection error, frames/s). Ages count to this node's clock (sim time
+        or wall time, as the camera's stamps), so a camera that stops makes every robot
+        age and, after ``lost_after``, lost."""
         now = time.monotonic()
         self._frame_walls = [t for t in self._frame_walls if t > now - 2.0]
         fps = len(self._frame_walls) / 2.0
-        ages = self.tracks.ages(self._stamp_ns)
-        lost = self.tracks.lost(self._stamp_ns, self.lost_after)
-        seen = int(np.count_nonzero(ages == 0.0)) if self.frames else 0
-        level = DiagnosticStatus.OK if len(lost) == 0 and self.frames else DiagnosticStatus.WARN
+        clock_ns = max(self._stamp_ns, self.get_clock().now().nanoseconds)
+        ages = self.tracks.ages(clock_ns)
+        lost = self.tracks.lost(clock_ns, self.lost_after)
+        in_frame = self.tracks.ages(self._stamp_ns) == 0.0
+        seen = int(np.count_nonzero(in_frame)) if self.frames else 0
+        silent = now - self._frame_walls[-1] if self._frame_walls else float("inf")
+        message = f"{seen} of {self.tracks.n} robots in the last frame, {len(lost)} lost, "
+        message += f"{fps:.1f} frames/s"
+        if silent > self.lost_after:
+            message = f"no frame for {silent:.1f} s; " + message
+        ok = len(lost) == 0 and silent <= self.lost_after
         status = DiagnosticStatus(
-            level=level,
+            level=DiagnosticStatus.OK if ok else DiagnosticStatus.WARN,
             name=TRACKER_STATUS,
-            message=f"{seen} of {self.tracks.n} robots in the last frame, {len(lost)} lost, "
-            f"{fps:.1f} frames/s",
+            message=message,
             values=[
                 KeyValue(key="detected", value=str(seen)),
                 KeyValue(key="expected", value=str(self.tracks.n)),
-                KeyValue(key="missing", value=" ".join(map(str, np.flatnonzero(ages > 0)))),
+                KeyValue(key="missing", value=" ".join(map(str, np.flatnonzero(~in_frame)))),
                 KeyValue(key="lost", value=" ".join(map(str, lost))),
                 KeyValue(
                     key="ages_s",
