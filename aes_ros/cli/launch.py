@@ -21,7 +21,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, tracking_arena
+from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS, tracking_arena
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -80,6 +80,20 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "swarm in",
     )  # fmt: skip
     p.add_argument(
+        "--world", choices=WORLDS, default="pybullet",
+        help="pybullet (default): the simulated robots; none: a real arena, no bridge, "
+        "every node on wall-clock time, the robots' drivers take /mona_<i>/cmd_vel (needs "
+        "--tracking camera, --camera-source, --calibration; docs/real_robots.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--camera-source", default=None, metavar="DEVICE",
+        help="with --world none: the overhead camera (/dev/video0, its number, or a video file)",
+    )  # fmt: skip
+    p.add_argument(
+        "--calibration", type=Path, default=None, metavar="FILE",
+        help="with --world none: the camera's calibration (aes-swarm calibrate)",
+    )  # fmt: skip
+    p.add_argument(
         "--camera", type=_pixels, default=(1280, 960), metavar="WxH",
         help="the simulated camera's resolution (default 1280x960)",
     )  # fmt: skip
@@ -105,29 +119,36 @@ def run(args: argparse.Namespace) -> int:
 
     sc = load_scenario(args)
     overrides = scenario.parse_assignments(args.set)
-    if args.tracking != "none" and not sc.arena:
+    if args.tracking != "none" and args.world != "none" and not sc.arena:
         # the camera sees this arena: the supervisor keeps the swarm in it
         sc = sc.with_overrides({"arena": list(tracking_arena(sc))}, "--tracking")
-    config = LaunchConfig(
-        scenario=sc,
-        label=f"{scenario_label(args)} (ROS)",
-        layout=args.layout,
-        neighbor_source=args.neighbor_source,
-        mode=args.mode,
-        duration=None,  # load_scenario already applied --duration to the scenario
-        seed=args.seed,
-        record=args.record,
-        out_dir=args.out,
-        gui=args.gui,
-        lockstep=args.lockstep,
-        real_time_factor=args.real_time_factor,
-        clip=bool(sc.clip) if "clip" in overrides else None,
-        on_failure=args.on_failure,
-        dashboard=args.dashboard,
-        tracking=args.tracking,
-        camera_size=args.camera,
-        camera_rate=args.camera_rate,
-    )
+    try:
+        config = LaunchConfig(
+            scenario=sc,
+            label=f"{scenario_label(args)} (ROS)",
+            layout=args.layout,
+            neighbor_source=args.neighbor_source,
+            mode=args.mode,
+            duration=None,  # load_scenario already applied --duration to the scenario
+            seed=args.seed,
+            record=args.record,
+            out_dir=args.out,
+            gui=args.gui,
+            lockstep=args.lockstep,
+            real_time_factor=args.real_time_factor,
+            clip=bool(sc.clip) if "clip" in overrides else None,
+            on_failure=args.on_failure,
+            dashboard=args.dashboard,
+            tracking=args.tracking,
+            camera_size=args.camera,
+            camera_rate=args.camera_rate,
+            world=args.world,
+            camera_source=args.camera_source,
+            calibration=args.calibration,
+        )
+    except ValueError as exc:  # an option that does not fit the others, named
+        print(f"aes-swarm launch: error: {exc}", file=sys.stderr)
+        return 2
     try:
         result = launch(config, say=lambda line: print(line, flush=True))
     except LaunchError as exc:

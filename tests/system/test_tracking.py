@@ -244,3 +244,48 @@ def test_a_calibration_file_with_a_wrong_field_exits_naming_it(spawn, scene, tmp
     assert proc.wait(30) == 1
     assert "cannot start" in spawn.log(proc).read_text()
     assert "K:" in spawn.log(proc).read_text()
+
+
+def test_a_real_arena_launch_runs_from_a_camera_without_a_bridge(spawn, probe, tmp_path):
+    """``--world none``: no bridge, no simulated camera; the tracker reads the "camera"
+    (a video file standing in for /dev/video0) with a calibration made beforehand,
+    every node on wall-clock time, and the robot nodes command /mona_<i>/cmd_vel from
+    the tracked poses, as a real arena's drivers would take them."""
+    from geometry_msgs.msg import Twist
+
+    from aes_ros import scenario
+    from aes_ros.ros.qos import COMMAND
+
+    arena = [-1.0, 1.0, -0.75, 0.75]
+    camera = arena_camera(arena, 1280, 960, 60.0)
+    layout = corner_layout(arena)
+    renderer = CameraRenderer(camera, references=layout.references, noise_sigma=2.0, rng=5)
+    start, headings = scenario.load("linear").with_robots(9).initial_state(0)
+    video = tmp_path / "camera.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"FFV1"), 20.0, (1280, 960), False)
+    for k in range(400):  # 20 s of robots creeping north-east
+        writer.write(renderer.render(start + 0.0005 * k, headings))
+    writer.release()
+    first = cv2.VideoCapture(str(video)).read()[1][:, :, 0]
+    calibration, _ = calibrate(first, camera.K, camera.dist, layout)
+    calibration.save(tmp_path / "calibration.yaml")
+    commands: list[Twist] = []
+    probe.node.create_subscription(Twist, "/mona_0/cmd_vel", commands.append, COMMAND)
+    launcher = spawn.start(
+        "aes-swarm", "launch", "--setup", "linear", "--robots", "9", "--duration", "6",
+        "--world", "none", "--tracking", "camera", "--camera-source", str(video),
+        "--calibration", str(tmp_path / "calibration.yaml"), "--out", str(tmp_path / "out"),
+        name="launch",
+    )  # fmt: skip
+    assert launcher.wait(120) == 0, spawn.logs()
+    log = spawn.log(launcher).read_text()
+    logs = tmp_path / "out" / "logs"
+    assert not (logs / f"{names.SIM_BRIDGE_NODE}.log").exists()
+    assert not (logs / f"{names.CAMERA_NODE}.log").exists()
+    assert "reading" in (logs / f"{names.TRACKER_NODE}.log").read_text()
+    assert "no simulated world: positions from the camera" in log
+    assert "all 9 robots moving" in log and "stopped cleanly" in log, log[-2000:]
+    assert len(commands) > 20  # the robot nodes drove robot 0 from the tracked poses
+    rows = list(csv.DictReader((tmp_path / "out" / "metrics.csv").open()))
+    t = [float(r["t"]) for r in rows]
+    assert t[-1] - t[0] >= 5.9  # the run's 6 s, counted from the first tracked pose

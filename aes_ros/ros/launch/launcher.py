@@ -178,21 +178,23 @@ class Launcher:
         self.events = EventLog(self.work_dir / "events.csv", self.say)
         self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
         # Tracked, the outputs are made of the exact poses; the robots read the tracker's.
-        truth = names.POSES if cfg.tracking == "none" else names.GROUND_TRUTH_POSES
-        self.monitor = Monitor(n, truth)
+        simulated = cfg.tracking != "none" and cfg.world != "none"
+        truth = names.GROUND_TRUTH_POSES if simulated else names.POSES
+        self.monitor = Monitor(n, truth, wall_clock=not cfg.sim_time)
         preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
-        bridge_spec, supervisor_spec, *robot_specs = node_commands(cfg, scenario_file, robots_file)
+        specs = node_commands(cfg, scenario_file, robots_file)
+        bridge_spec = specs.pop(0) if cfg.world != "none" else None  # a real arena: none
+        supervisor_spec, *robot_specs = specs
         tracking_specs = tracking_commands(cfg, write_layout(cfg, self.work_dir / "arena.yaml"))
-        specs = (bridge_spec, *tracking_specs, supervisor_spec, *robot_specs)
-        self._specs = {spec.name: spec for spec in specs}
+        specs = [*([bridge_spec] if bridge_spec else []), *tracking_specs, supervisor_spec]
+        self._specs = {spec.name: spec for spec in (*specs, *robot_specs)}
         if cfg.record is not None:
             record = Path(cfg.record).resolve()
             self._specs["recorder"] = recorder_command(record, n, sys.executable)
             self.recorder = self.procs.start(*self._specs["recorder"])
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
-        bridge = self.procs.start(*bridge_spec)
-        for spec in tracking_specs:
-            self.procs.start(*spec)
+        # the first process that publishes poses: the bridge, or a real arena's tracker
+        bridge, *_ = [self.procs.start(*spec) for spec in specs[:-1]]
         if cfg.lockstep or self.recorder is not None:
             # The bridge and the supervisor first: the robots start only once the
             # launcher, the supervisor (and the recorder) receive /swarm/poses, so
@@ -208,14 +210,16 @@ class Launcher:
                 # supervisor's publishers: on a loaded machine discovery can take
                 # seconds, and what a writer sends before the reader knows it is
                 # lost for the bag (only its last few are kept for late readers).
-                self.monitor.pause_bridge(True, cfg.start_timeout)
+                if bridge_spec is not None:
+                    self.monitor.pause_bridge(True, cfg.start_timeout)
             for spec in robot_specs:
                 self.procs.start(*spec)
             if self.recorder is not None:
                 self.recorder.wait_for(
                     names.RECORDER_MATCHED_ALL, cfg.start_timeout, self._stopping
                 )
-                self.monitor.pause_bridge(False, cfg.start_timeout)
+                if bridge_spec is not None:
+                    self.monitor.pause_bridge(False, cfg.start_timeout)
         else:
             # Everything at once: each process spends ~1 s starting Python and
             # building its nodes, and discovery overlaps; robots move at their first
@@ -258,11 +262,11 @@ class Launcher:
             self._check_start()
             if bridge.proc.poll() is not None:
                 raise LaunchError(
-                    f"sim_bridge exited with code {bridge.proc.returncode}:\n{bridge.tail()}"
+                    f"{bridge.name} exited with code {bridge.proc.returncode}:\n{bridge.tail()}"
                 )
             if time.monotonic() > deadline:
                 raise LaunchError(
-                    f"no /swarm/poses from sim_bridge within {self.config.start_timeout:.0f} s"
+                    f"no poses from {bridge.name} within {self.config.start_timeout:.0f} s"
                 )
 
     def spin_for(self, seconds: float) -> None:

@@ -57,8 +57,14 @@ class Monitor:
     moved from their first sampled pose (:meth:`all_moving`).
     """
 
-    def __init__(self, n_robots: int, poses_topic: str = names.POSES) -> None:
+    def __init__(
+        self, n_robots: int, poses_topic: str = names.POSES, wall_clock: bool = False
+    ) -> None:
         self.n = n_robots
+        #: Wall-clock stamps (a real arena): times count from the first pose's stamp,
+        #: ``origin`` [s since the epoch], so that they keep their digits in the outputs.
+        self.wall_clock = wall_clock
+        self.origin: float | None = None if wall_clock else 0.0
         self.context = rclpy.Context()
         with _udp_only():
             # The launcher handles SIGINT/SIGTERM itself (it must stop the children first).
@@ -104,7 +110,9 @@ class Monitor:
         except BadMessageError:
             self.bad += 1
             return
-        t = sec + nanosec * 1e-9
+        if self.origin is None:
+            self.origin = float(sec)
+        t = (sec - self.origin) + nanosec * 1e-9
         if self.times and t <= self.times[-1] + TIME_EPS * 1e-3:
             if t < self.times[-1] - TIME_EPS:  # the bridge was reset: start over
                 self.times.clear()

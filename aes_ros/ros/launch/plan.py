@@ -33,6 +33,8 @@ ON_FAILURE = ("respawn", "continue", "stop")
 #: Where the robots' neighbour positions come from (``--tracking``): the bridge's exact
 #: poses, or an overhead camera and the tracker (SPEC §8).
 TRACKING = ("none", "camera")
+#: The world (``--world``): the pybullet bridge, or none (a real arena's robots).
+WORLDS = ("pybullet", "none")
 #: Floor [m] around the formation that a tracking launch's arena adds when the
 #: scenario gives none, and the smallest arena (the issue's 2.0 × 1.5 m at 1280 × 960).
 TRACKING_ROOM = 0.5
@@ -67,6 +69,10 @@ class LaunchConfig:
         simulated overhead camera and the tracker, and the bridge's exact poses go to
         ``/sim/ground_truth/poses`` (what the launcher's outputs are made of);
         ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera.
+    world : ``pybullet`` (the bridge), or ``none``: a real arena, no bridge and no
+        simulated camera, every node on wall-clock time, the tracker reading
+        ``camera_source`` (a device or a video file) with ``calibration`` (a file of
+        ``aes-swarm calibrate``); needs ``tracking="camera"``.
     """
 
     scenario: Scenario
@@ -95,6 +101,9 @@ class LaunchConfig:
     tracking: str = "none"
     camera_size: tuple[int, int] = (1280, 960)
     camera_rate: float = 20.0
+    world: str = "pybullet"
+    camera_source: str | None = None
+    calibration: Path | None = None
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -109,6 +118,18 @@ class LaunchConfig:
             ),
             ("mode", self.mode in names.MODES, _one_of(names.MODES)),
             ("tracking", self.tracking in TRACKING, _one_of(TRACKING)),
+            ("world", self.world in WORLDS, _one_of(WORLDS)),
+            (
+                "world",
+                self.world == "pybullet"
+                or (self.tracking == "camera" and self.camera_source and self.calibration),
+                "none needs --tracking camera, --camera-source and --calibration",
+            ),
+            (
+                "camera_source",
+                self.camera_source is None or self.world == "none",
+                "only with --world none (in simulation the camera is simulated)",
+            ),
             (
                 "lockstep",
                 not (self.lockstep and self.tracking != "none"),
@@ -134,6 +155,11 @@ class LaunchConfig:
         for name, ok, hint in checks:
             if not ok:
                 raise ValueError(f"{name}: {getattr(self, name)!r} is not allowed; {hint}")
+
+    @property
+    def sim_time(self) -> bool:
+        """The nodes run on the bridge's /clock (False in a real arena: wall time)."""
+        return self.world != "none"
 
     @property
     def num_robots(self) -> int:
@@ -249,7 +275,7 @@ def robot_parameters(
     neighbors, rest = sheet
     valid = neighbors[i] >= 0
     params: dict[str, Any] = {
-        "use_sim_time": True,
+        "use_sim_time": config.sim_time,
         **({"scenario": str(scenario_file), "num_robots": 0} if scenario_file else {}),
         "robot_id": i,
         "neighbors": [int(j) for j in neighbors[i][valid]],
@@ -319,7 +345,7 @@ def supervisor_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec
     params = {
         "scenario": str(scenario_file),
         "num_robots": 0,
-        "use_sim_time": True,
+        "use_sim_time": config.sim_time,
         **config.supervisor_params,
     }
     return ProcessSpec(names.SUPERVISOR_NODE, ["aes-supervisor", *ros_args(params)])
@@ -383,7 +409,7 @@ def robot_commands(
         params: dict[str, Any] = {
             "scenario": str(scenario_file),
             "num_robots": 0,
-            "use_sim_time": True,
+            "use_sim_time": config.sim_time,
             "neighbor_source": config.neighbor_source,
             "seed": config.robot_seed_value,
         }
@@ -401,9 +427,10 @@ def robot_commands(
 def node_commands(
     config: LaunchConfig, scenario_file: Path, robots_file: Path
 ) -> list[ProcessSpec]:
-    """Every node process in start order: bridge, supervisor, then the robots."""
+    """Every node process in start order: bridge (none in a real arena), supervisor,
+    then the robots."""
     return [
-        bridge_command(config, scenario_file),
+        *([bridge_command(config, scenario_file)] if config.world != "none" else []),
         supervisor_command(config, scenario_file),
         *robot_commands(config, scenario_file, robots_file),
     ]
@@ -422,13 +449,13 @@ def tracking_arena(scenario: Scenario) -> tuple[float, float, float, float]:
     h = max(y1 - y0 + 2 * TRACKING_ROOM, TRACKING_MIN_ARENA[1])
     w, h = max(w, h * 4 / 3), max(h, w * 3 / 4)
     cx, cy = (x0 + x1) / 2, (y0 + y1) / 2
-    return (round(cx - w / 2, 3), round(cx + w / 2, 3), round(cy - h / 2, 3), round(cy + h / 2, 3))
+    return tuple(round(float(v), 3) for v in (cx - w / 2, cx + w / 2, cy - h / 2, cy + h / 2))
 
 
 def write_layout(config: LaunchConfig, path: Path) -> Path:
     """The arena layout of a tracking launch (reference markers off the corners of
     :func:`tracking_arena`) written to ``path``, for the camera and the tracker."""
-    if config.tracking != "none":
+    if config.tracking != "none" and config.world != "none":
         from tracker_node.calibration import corner_layout, save_layout
 
         save_layout(corner_layout(tracking_arena(config.scenario)), path)
@@ -440,6 +467,12 @@ def tracking_commands(config: LaunchConfig, layout_file: Path) -> list[ProcessSp
     (none otherwise), on sim time; ``layout_file``: the arena's reference markers."""
     if config.tracking == "none":
         return []
+    tracker: dict[str, Any] = {"num_robots": config.num_robots, "use_sim_time": config.sim_time}
+    if config.world == "none":  # a real camera, calibrated beforehand
+        tracker["calibration"] = str(Path(config.calibration).resolve())
+        source = ["--source", str(config.camera_source)]
+        return [ProcessSpec(names.TRACKER_NODE, ["aes-tracker", *source, *ros_args(tracker)])]
+    tracker["layout"] = str(layout_file)
     width, height = config.camera_size
     camera = {
         "arena": list(tracking_arena(config.scenario)),
@@ -448,13 +481,27 @@ def tracking_commands(config: LaunchConfig, layout_file: Path) -> list[ProcessSp
         "rate": float(config.camera_rate),
         "layout": str(layout_file),
         "seed": int(config.seed),
-        "use_sim_time": True,
+        "use_sim_time": config.sim_time,
     }
-    tracker = {"num_robots": config.num_robots, "layout": str(layout_file), "use_sim_time": True}
     return [
         ProcessSpec(names.CAMERA_NODE, ["aes-arena-camera", *ros_args(camera)]),
         ProcessSpec(names.TRACKER_NODE, ["aes-tracker", *ros_args(tracker)]),
     ]
+
+
+def _describe_tracking(config: LaunchConfig) -> str:
+    if config.world == "none":
+        return (
+            f", no simulated world: positions from the camera {config.camera_source} "
+            f"(calibration {config.calibration}), wall-clock time"
+        )
+    if config.tracking == "none":
+        return ""
+    width, height = config.camera_size
+    return (
+        f", positions from the overhead camera ({width}x{height} px, "
+        f"{config.camera_rate:g} Hz) over the arena {list(tracking_arena(config.scenario))} m"
+    )
 
 
 def describe(config: LaunchConfig, hosts: int) -> str:
@@ -464,13 +511,7 @@ def describe(config: LaunchConfig, hosts: int) -> str:
         f"process{'es' if hosts != 1 else ''}), neighbours from {config.neighbor_source}, "
         f"{config.mode} mode{', lockstep' if config.lockstep else ''}, "
         f"real-time factor {config.real_time_factor:g}, on failure {config.on_failure}"
-        + (
-            f", positions from the overhead camera ({config.camera_size[0]}x"
-            f"{config.camera_size[1]} px, {config.camera_rate:g} Hz) over the arena "
-            f"{list(tracking_arena(config.scenario))} m"
-            if config.tracking != "none"
-            else ""
-        )
+        + _describe_tracking(config)
     )
 
 
@@ -481,7 +522,7 @@ def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
         "host": "127.0.0.1",
         "port": int(config.dashboard or 0),
         "label": config.label,
-        "use_sim_time": True,
+        "use_sim_time": config.sim_time,
     }
     return ProcessSpec(names.DASHBOARD_NODE, ["aes-dashboard", *ros_args(params)])
 
