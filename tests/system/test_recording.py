@@ -215,3 +215,46 @@ def test_recorder_writes_what_its_queues_hold_when_it_stops(probe, tmp_path) -> 
         rclpy.try_shutdown(context=context)
     xs = [msg.linear.x for topic, _, msg in read_bag(tmp_path / "drained.mcap")]
     assert xs == [float(i) for i in range(30)]
+
+
+@pytest.mark.parametrize("rate", [0.0, 4.0])
+def test_camera_frames_are_recorded_only_when_asked_and_at_most_at_the_rate(
+    spawn, probe, tmp_path, rate: float
+) -> None:
+    """The camera's 20 frames/s are 1.2 MB each: ``--record`` leaves them out; with
+    ``--images RATE`` (``aes-swarm launch --record-images RATE``) at most RATE a second
+    of them, by their stamps, and their camera_info, readable by any MCAP reader."""
+    from sensor_msgs.msg import CameraInfo, Image
+
+    from aes_ros.ros.cdr import encode_image
+    from aes_ros.ros.qos import IMAGES, SENSOR
+
+    bag = tmp_path / "camera.mcap"
+    extra = ["--images", str(rate)] if rate else []
+    recorder = spawn.start(
+        "python", "-m", "aes_ros.ros.recorder", str(bag), *extra, name="recorder"
+    )
+    log = spawn.log(recorder)
+    assert wait_for(lambda: names.RECORDER_STARTED in log.read_text(), TIMEOUT)
+    images = probe.publisher(Image, names.CAMERA_IMAGE, IMAGES, wait=bool(rate))
+    infos = probe.publisher(CameraInfo, names.CAMERA_INFO, SENSOR, wait=bool(rate))
+    frame = np.full((480, 640), 128, np.uint8)
+    for k in range(60):  # 3 s of camera time at 20 frames/s
+        sec, nanosec = divmod(k * 50_000_000, 1_000_000_000)
+        images.publish(encode_image(sec, nanosec, names.CAMERA_FRAME, frame, "mono8"))
+        info = CameraInfo(width=640, height=480)
+        info.header.stamp.sec, info.header.stamp.nanosec = sec, nanosec
+        infos.publish(info)
+        time.sleep(0.02)
+    time.sleep(0.5)
+    recorder.send_signal(signal.SIGINT)
+    assert recorder.wait(30) == 0
+    frames = [msg for topic, _, msg in read_bag(bag) if topic == names.CAMERA_IMAGE]
+    stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in frames]
+    if not rate:
+        assert frames == []
+        return
+    assert 10 <= len(frames) <= 12, stamps  # 3 s at 4 a second (+1: the first)
+    assert np.all(np.diff(stamps) >= 1.0 / rate - 1e-9)
+    assert frames[0].width == 640 and bytes(frames[0].data) == frame.tobytes()
+    assert any(topic == names.CAMERA_INFO for topic, _, _ in read_bag(bag))
