@@ -289,3 +289,16 @@ def test_a_real_arena_launch_runs_from_a_camera_without_a_bridge(spawn, probe, t
     rows = list(csv.DictReader((tmp_path / "out" / "metrics.csv").open()))
     t = [float(r["t"]) for r in rows]
     assert t[-1] - t[0] >= 5.9  # the run's 6 s, counted from the first tracked pose
+
+
+@pytest.mark.parametrize("content", [b"", b"\x00\x00\x00\x18ftypmp42 not really a video"])
+def test_a_corrupt_video_source_exits_naming_it(spawn, scene, tmp_path, content) -> None:
+    video = tmp_path / "broken.mp4"
+    video.write_bytes(content)
+    proc = spawn.start(
+        "aes-tracker", "--source", str(video), "--ros-args", "-p", "num_robots:=9",
+        "-p", f"calibration:={scene['calibration']}", name="tracker",
+    )  # fmt: skip
+    assert proc.wait(30) == 1
+    text = spawn.log(proc).read_text()
+    assert f"cannot start: --source {video}" in text, text
