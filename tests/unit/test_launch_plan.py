@@ -3,13 +3,17 @@ over processes and names them, as pure command lines (nothing is started)."""
 
 from __future__ import annotations
 
+import pytest
+
 from aes_ros import scenario
+from aes_ros.ros import interface as names
 from aes_ros.ros.launch.plan import (
     LaunchConfig,
     dashboard_command,
     node_commands,
     ros_args,
     split_robots,
+    start_order,
 )
 
 
@@ -61,3 +65,45 @@ def test_dashboard_runs_on_loopback_with_sim_time(tmp_path) -> None:
 def test_an_empty_text_parameter_survives_the_command_line() -> None:
     # rcl refuses `token:=` with nothing after it; YAML's '' is the empty string
     assert ros_args({"token": ""}) == ["--ros-args", "-p", "token:=''"]
+
+
+@pytest.mark.parametrize(
+    ("world", "tracking", "first", "poses"),
+    [
+        ("pybullet", "none", ["sim_bridge"], names.POSES),
+        ("pybullet", "camera", ["sim_bridge", "arena_camera", "tracker"], names.GROUND_TRUTH_POSES),
+        ("none", "camera", ["tracker"], names.POSES),  # a real arena: the tracker's poses
+    ],
+)
+def test_start_order_starts_the_first_poses_publisher_first(
+    tmp_path, world: str, tracking: str, first: list[str], poses: str
+) -> None:
+    """The bridge (none in a real arena), then the camera and the tracker: the first of
+    them publishes the poses the launcher waits for. The launcher samples the bridge's
+    exact poses when tracked in simulation, the tracker's in a real arena."""
+    sc = scenario.load("linear").with_robots(4)
+    real = (
+        {"camera_source": "arena.mp4", "calibration": tmp_path / "c.yaml"}
+        if world == "none"
+        else {}
+    )
+    cfg = LaunchConfig(sc, world=world, tracking=tracking, layout="single", **real)
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml", tmp_path / "arena.yaml")
+    order = start_order(cfg, *files)
+    assert [spec.name for spec in order.first] == first
+    assert (order.bridge is not None) == (world != "none")
+    assert order.recorder is None and order.dashboard is None
+    assert list(order.by_name) == [*first, "supervisor", "robot_host_0"]
+    assert cfg.poses_topic == poses
+
+
+def test_start_order_starts_the_recorder_first_and_the_dashboard_last(tmp_path) -> None:
+    sc = scenario.load("linear").with_robots(4)
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml", tmp_path / "arena.yaml")
+    recorded = start_order(
+        LaunchConfig(sc, record=tmp_path / "bag", dashboard=0, layout="single"), *files
+    )
+    assert recorded.recorder.argv[-3:] == [str((tmp_path / "bag").resolve()), "--robots", "4"]
+    assert list(recorded.by_name) == [
+        "sim_bridge", "supervisor", "robot_host_0", "recorder", "dashboard"
+    ]  # fmt: skip

@@ -6,24 +6,28 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    parameters to ``<work>/robots.yaml`` (:mod:`aes_ros.ros.launch.plan`), so every
    process reads the same values;
 2. starts, each in its own process group with the caller's ROS environment
-   (:mod:`aes_ros.ros.launch.processes`): the recorder (with ``record``),
-   ``aes-sim-bridge``, ``aes-supervisor`` and the robots in the chosen layout; all
-   at once, except in lockstep or when recording, where the robots start only
-   after the bridge's first poses have reached the launcher, the supervisor and
-   the recorder, and with a recording the bridge is paused until the recorder
-   has found every robot's and the supervisor's publishers;
-3. watches ``/swarm/poses`` (:mod:`aes_ros.ros.launch.monitor`) until every robot
-   has moved, then runs for ``duration`` seconds of sim time (0 = until
-   SIGINT/SIGTERM), streaming ``metrics.csv`` and the trajectory to ``out_dir``
-   as it goes (:mod:`aes_ros.run_writer`, flushed every wall second) and handling
-   processes that die as ``on_failure`` says (:mod:`aes_ros.ros.launch.supervision`;
-   every fault and recovery in ``events.csv``);
+   (:mod:`aes_ros.ros.launch.processes`), in the order of
+   :func:`~aes_ros.ros.launch.plan.start_order`: the recorder (with ``record``),
+   ``aes-sim-bridge``, with ``--tracking camera`` the overhead camera and the tracker,
+   ``aes-supervisor`` and the robots in the chosen layout; all at once, except in
+   lockstep or when recording, where the robots start only after the first poses
+   have reached the launcher, the supervisor and the recorder, and with a recording
+   the bridge is paused until the recorder has found every robot's and the
+   supervisor's publishers. With ``--world none`` (a real arena) there is no bridge
+   and no simulated camera: the tracker's poses are the ones waited for;
+3. watches the poses (:mod:`aes_ros.ros.launch.monitor`; the bridge's exact ones when
+   tracked in simulation) until every robot has moved, then runs for ``duration``
+   seconds of sim time (0 = until SIGINT/SIGTERM), streaming ``metrics.csv`` and the
+   trajectory to ``out_dir`` as it goes (:mod:`aes_ros.run_writer`, flushed every wall
+   second) and handling processes that die as ``on_failure`` says
+   (:mod:`aes_ros.ros.launch.supervision`; every fault and recovery in ``events.csv``);
 4. stops every process (SIGINT to its group, SIGKILL after ``stop_timeout``), the
    recorder last so that the bag is complete and closed, and cleans Fast DDS
    shared memory left by killed processes;
 5. writes ``trajectory.npz``, ``metrics.csv``, ``snapshots.png`` and ``metrics.png``
-   (:func:`aes_ros.report.write_run_outputs`; times are sim times [s]; the first
-   sample is the last one before every robot had moved).
+   (:func:`aes_ros.report.write_run_outputs`; times are sim times [s], in a real
+   arena seconds from the first tracked pose; the first sample is the last one before
+   every robot had moved).
 
 Before it starts anything it checks (:mod:`aes_ros.ros.launch.preflight`) that the
 outputs can be written and have room, and that no other swarm is active in this
@@ -48,7 +52,6 @@ import contextlib
 import math
 import os
 import shutil
-import sys
 import threading
 import time
 from collections.abc import Callable
@@ -66,11 +69,8 @@ from aes_ros.ros.launch.plan import (
     LaunchConfig,
     LaunchError,
     ProcessSpec,
-    dashboard_command,
     describe,
-    node_commands,
-    recorder_command,
-    tracking_commands,
+    start_order,
     work_directory,
     write_layout,
     write_robot_params,
@@ -177,30 +177,22 @@ class Launcher:
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
         self.events = EventLog(self.work_dir / "events.csv", self.say)
         self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
-        # Tracked, the outputs are made of the exact poses; the robots read the tracker's.
-        simulated = cfg.tracking != "none" and cfg.world != "none"
-        truth = names.GROUND_TRUTH_POSES if simulated else names.POSES
-        self.monitor = Monitor(n, truth, wall_clock=not cfg.sim_time)
+        self.monitor = Monitor(n, cfg.poses_topic, wall_clock=not cfg.sim_time)
         preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
-        specs = node_commands(cfg, scenario_file, robots_file)
-        bridge_spec = specs.pop(0) if cfg.world != "none" else None  # a real arena: none
-        supervisor_spec, *robot_specs = specs
-        tracking_specs = tracking_commands(cfg, write_layout(cfg, self.work_dir / "arena.yaml"))
-        specs = [*([bridge_spec] if bridge_spec else []), *tracking_specs, supervisor_spec]
-        self._specs = {spec.name: spec for spec in (*specs, *robot_specs)}
-        if cfg.record is not None:
-            record = Path(cfg.record).resolve()
-            self._specs["recorder"] = recorder_command(record, n, sys.executable)
-            self.recorder = self.procs.start(*self._specs["recorder"])
+        layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
+        order = start_order(cfg, scenario_file, robots_file, layout_file)
+        self._specs = order.by_name
+        if order.recorder is not None:
+            self.recorder = self.procs.start(*order.recorder)
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
         # the first process that publishes poses: the bridge, or a real arena's tracker
-        bridge, *_ = [self.procs.start(*spec) for spec in specs[:-1]]
+        bridge, *_ = [self.procs.start(*spec) for spec in order.first]
         if cfg.lockstep or self.recorder is not None:
             # The bridge and the supervisor first: the robots start only once the
             # launcher, the supervisor (and the recorder) receive /swarm/poses, so
             # that no step of a deterministic run and no message of a recording is
             # missed (at full speed a run can be over before a late reader matches).
-            supervisor = self.procs.start(*supervisor_spec)
+            supervisor = self.procs.start(*order.supervisor)
             self._wait_first_poses(bridge)
             supervisor.wait_for(names.SUPERVISOR_RECEIVING_POSES, cfg.start_timeout, self._stopping)
             if self.recorder is not None:
@@ -210,41 +202,35 @@ class Launcher:
                 # supervisor's publishers: on a loaded machine discovery can take
                 # seconds, and what a writer sends before the reader knows it is
                 # lost for the bag (only its last few are kept for late readers).
-                if bridge_spec is not None:
+                if order.bridge is not None:
                     self.monitor.pause_bridge(True, cfg.start_timeout)
-            for spec in robot_specs:
+            for spec in order.robots:
                 self.procs.start(*spec)
             if self.recorder is not None:
                 self.recorder.wait_for(
                     names.RECORDER_MATCHED_ALL, cfg.start_timeout, self._stopping
                 )
-                if bridge_spec is not None:
+                if order.bridge is not None:
                     self.monitor.pause_bridge(False, cfg.start_timeout)
         else:
             # Everything at once: each process spends ~1 s starting Python and
             # building its nodes, and discovery overlaps; robots move at their first
             # poses, and the run starts at the last sample before all of them moved.
-            for spec in (supervisor_spec, *robot_specs):
+            for spec in (order.supervisor, *order.robots):
                 self.procs.start(*spec)
             self._wait_first_poses(bridge)
-        if cfg.dashboard is not None:
-            self._start_dashboard(scenario_file)
+        if order.dashboard is not None:  # and its URL, from its ready line
+            dashboard = self.procs.start(*order.dashboard)
+            dashboard.wait_for(names.DASHBOARD_READY, 30.0, self._stopping)
+            if (url := dashboard.line_after(names.DASHBOARD_READY)) is not None:
+                self.say(f"launch: dashboard at {url}")
         restart = RestartCommands(
             self._specs, self.monitor, self.procs.log_dir / "world_state.npz", cfg.record, n
         )
         self.supervision = Supervision(
             self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time
         )
-        self.say(f"launch: {describe(cfg, len(robot_specs))}; logs in {self.procs.log_dir}")
-
-    def _start_dashboard(self, scenario_file: Path) -> None:
-        """Start the browser dashboard and say its URL (from its ready line)."""
-        spec = dashboard_command(self.config, scenario_file)
-        self._specs[spec.name] = spec
-        child = self.procs.start(*spec)
-        child.wait_for(names.DASHBOARD_READY, 30.0, self._stopping)
-        if (url := child.line_after(names.DASHBOARD_READY)) is not None:
-            self.say(f"launch: dashboard at {url}")
+        self.say(f"launch: {describe(cfg, len(order.robots))}; logs in {self.procs.log_dir}")
 
     def _stopping(self) -> bool:
         return self.stop_reason is not None
@@ -255,19 +241,9 @@ class Launcher:
         if not (self.events is not None and self.events.events):
             preflight.refuse_other_swarm(self.monitor.late_second_swarm(self.wall_time))
 
-    def _wait_first_poses(self, bridge: Child) -> None:
-        deadline = time.monotonic() + self.config.start_timeout
-        while not self.monitor.times and self.stop_reason is None:
-            self.monitor.spin_once(0.05)
-            self._check_start()
-            if bridge.proc.poll() is not None:
-                raise LaunchError(
-                    f"{bridge.name} exited with code {bridge.proc.returncode}:\n{bridge.tail()}"
-                )
-            if time.monotonic() > deadline:
-                raise LaunchError(
-                    f"no poses from {bridge.name} within {self.config.start_timeout:.0f} s"
-                )
+    def _wait_first_poses(self, source: Child) -> None:
+        checks, timeout = (self._check_start, source.check_running), self.config.start_timeout
+        self.monitor.wait_first_poses(source.name, timeout, checks, self._stopping)
 
     def spin_for(self, seconds: float) -> None:
         """Keep sampling (and looking after the processes) for ``seconds`` of wall time."""
@@ -307,27 +283,16 @@ class Launcher:
         """
         mon = self.monitor
         assert mon is not None, "start() first"
-        deadline = time.monotonic() + self.config.start_timeout
-        while self.stop_reason is None:
-            mon.spin_once(0.05)
-            self.procs.check_alive()
-            self._check_start()
-            if (moved_at := mon.all_moving()) is not None:
-                self.go_index = mon.last_unmoved
-                self.t_go = mon.times[self.go_index]
-                self._begin_outputs()
-                self.say(
-                    f"launch: all {mon.n} robots moving at sim time "
-                    f"{mon.times[moved_at]:.2f} s (wall {self.wall_time:.1f} s)"
-                )
-                return self.t_go
-            if time.monotonic() > deadline:
-                stuck = np.flatnonzero(~mon.moved).tolist()
-                raise LaunchError(
-                    f"not every robot moved within {self.config.start_timeout:.0f} s "
-                    f"({len(mon.times)} pose samples; still at rest: {stuck[:20]})"
-                )
+        checks = (self.procs.check_alive, self._check_start)
+        moved_at = mon.wait_all_moving(self.config.start_timeout, checks, self._stopping)
         self.t_go = mon.times[mon.last_unmoved] if mon.times else 0.0
+        if moved_at is not None:
+            self.go_index = mon.last_unmoved
+            self._begin_outputs()
+            self.say(
+                f"launch: all {mon.n} robots moving at sim time "
+                f"{mon.times[moved_at]:.2f} s (wall {self.wall_time:.1f} s)"
+            )
         return self.t_go
 
     def _begin_outputs(self) -> None:
@@ -346,24 +311,16 @@ class Launcher:
         duration = self.config.run_time if duration is None else duration
         t_end = self.t_go + duration if duration > 0 else math.inf
         next_report = self.t_go + self.config.progress_every
-        last_count, last_new = len(mon.times), time.monotonic()
-        while self.stop_reason is None:
-            mon.spin_once(0.05)
-            self._supervise()
-            if len(mon.times) != last_count:
-                last_count, last_new = len(mon.times), time.monotonic()
-            elif time.monotonic() - last_new > self.config.stall_timeout:
-                raise LaunchError(
-                    f"no /swarm/poses for {self.config.stall_timeout:.0f} s "
-                    f"(sim time {mon.clock:.2f} s)"
-                )
+
+        def report() -> None:  # a progress line every progress_every s of sim time
+            nonlocal next_report
             now = mon.times[-1] if mon.times else 0.0
             if now >= next_report - TIME_EPS and now < t_end - TIME_EPS:
                 line = progress(now, mon.positions[-1], mon.headings[-1])
                 self.say(f"  {line}  [wall {self.wall_time:.1f} s]")
                 next_report += self.config.progress_every
-            if now >= t_end - TIME_EPS:
-                return
+
+        mon.run_until(t_end, self.config.stall_timeout, (self._supervise, report), self._stopping)
 
     def stop(self) -> list[str]:
         """Stop every process (idempotent); returns the names of SIGKILLed ones."""

@@ -14,6 +14,7 @@ import contextlib
 import json
 import os
 import time
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,8 @@ DISCOVERY_WAIT = 1.0
 #: swarm: a participant without this launch's Fast DDS profile announces itself only
 #: every 3 s, and its answer to a newcomer can go astray.
 OTHER_SWARM_WINDOW = 6.0
+#: What a waiting loop calls after every spin (each raises to end the wait).
+Checks = Sequence[Callable[[], None]]
 
 
 class Monitor:
@@ -196,6 +199,60 @@ class Monitor:
             else:
                 return k
         return None
+
+    def wait_first_poses(
+        self, source: str, timeout: float, checks: Checks, stopping: Callable[[], bool]
+    ) -> None:
+        """Spin until the first sample or ``stopping()``, calling ``checks`` after every
+        spin (the caller's look at its processes: they raise to end the wait); LaunchError
+        when ``timeout`` s pass without poses from ``source`` (the process that sends them)."""
+        deadline = time.monotonic() + timeout
+        while not self.times and not stopping():
+            self._spin_and_check(checks)
+            if time.monotonic() > deadline:
+                raise LaunchError(f"no poses from {source} within {timeout:.0f} s")
+
+    def wait_all_moving(
+        self, timeout: float, checks: Checks, stopping: Callable[[], bool]
+    ) -> int | None:
+        """Spin until every robot has moved (returns :meth:`all_moving`'s sample) or
+        ``stopping()`` (returns None), with ``checks`` as in :meth:`wait_first_poses`;
+        LaunchError after ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while not stopping():
+            self._spin_and_check(checks)
+            if (moved_at := self.all_moving()) is not None:
+                return moved_at
+            if time.monotonic() > deadline:
+                stuck = np.flatnonzero(~self.moved).tolist()
+                raise LaunchError(
+                    f"not every robot moved within {timeout:.0f} s "
+                    f"({len(self.times)} pose samples; still at rest: {stuck[:20]})"
+                )
+        return None
+
+    def run_until(
+        self, t_end: float, stall_timeout: float, checks: Checks, stopping: Callable[[], bool]
+    ) -> None:
+        """Spin until a sample at sim time ``t_end`` [s] or ``stopping()``, with ``checks``
+        as in :meth:`wait_first_poses`; LaunchError when no new sample has come for
+        ``stall_timeout`` wall seconds."""
+        last_count, last_new = len(self.times), time.monotonic()
+        while not stopping():
+            self._spin_and_check(checks)
+            if len(self.times) != last_count:
+                last_count, last_new = len(self.times), time.monotonic()
+            elif time.monotonic() - last_new > stall_timeout:
+                raise LaunchError(
+                    f"no /swarm/poses for {stall_timeout:.0f} s (sim time {self.clock:.2f} s)"
+                )
+            if (self.times[-1] if self.times else 0.0) >= t_end - TIME_EPS:
+                return
+
+    def _spin_and_check(self, checks: Checks) -> None:
+        self.spin_once(0.05)
+        for check in checks:
+            check()
 
     def samples(
         self, start: int = 0, t_end: float | None = None

@@ -3,7 +3,8 @@
 From a :class:`LaunchConfig` this module makes the effective scenario file, the
 robots' parameter file (standard ``node: ros__parameters:`` layout, so it works
 with ``--params-file`` anywhere) and the command line of every node process in
-the chosen layout (:func:`node_commands`; :func:`executable` finds their programs).
+the chosen layout (:func:`node_commands`; :func:`executable` finds their programs),
+in the order the launcher starts them (:func:`start_order`).
 The launcher (:mod:`aes_ros.ros.launch.launcher`) starts them; tests and scripts can
 run the same command lines elsewhere (tests/system/test_multihost.py runs them in
 network namespaces).
@@ -160,6 +161,14 @@ class LaunchConfig:
     def sim_time(self) -> bool:
         """The nodes run on the bridge's /clock (False in a real arena: wall time)."""
         return self.world != "none"
+
+    @property
+    def poses_topic(self) -> str:
+        """The poses the launcher samples and the outputs are made of: the bridge's exact
+        ones (``/sim/ground_truth/poses`` when the robots read the tracker's), or in a
+        real arena the tracker's (``/swarm/poses``)."""
+        tracked = self.tracking != "none" and self.world != "none"
+        return names.GROUND_TRUTH_POSES if tracked else names.POSES
 
     @property
     def num_robots(self) -> int:
@@ -536,3 +545,56 @@ def recorder_command(
     if after:
         argv += ["--after", *map(str, after)]
     return ProcessSpec("recorder", argv)
+
+
+class StartOrder(NamedTuple):
+    """A launch's processes in the order the launcher starts them (:func:`start_order`).
+
+    recorder : the MCAP recorder, first (None without ``record``).
+    bridge : ``aes-sim-bridge`` (None in a real arena, ``world="none"``).
+    tracking : with ``tracking="camera"`` the simulated overhead camera (none in a real
+        arena) and the tracker (:func:`tracking_commands`).
+    supervisor : ``aes-supervisor``; robots : the robot processes of the layout.
+    dashboard : ``aes-dashboard``, last (None without ``dashboard``).
+    """
+
+    recorder: ProcessSpec | None
+    bridge: ProcessSpec | None
+    tracking: list[ProcessSpec]
+    supervisor: ProcessSpec
+    robots: list[ProcessSpec]
+    dashboard: ProcessSpec | None
+
+    @property
+    def first(self) -> list[ProcessSpec]:
+        """What starts after the recorder and before the supervisor: the bridge, the camera,
+        the tracker; the first of them publishes the poses the launcher waits for (the
+        bridge, or a real arena's tracker)."""
+        return [self.bridge, *self.tracking] if self.bridge is not None else list(self.tracking)
+
+    @property
+    def by_name(self) -> dict[str, ProcessSpec]:
+        """Every process by its name."""
+        specs = (*self.first, self.supervisor, *self.robots, self.recorder, self.dashboard)
+        return {spec.name: spec for spec in specs if spec is not None}
+
+
+def start_order(
+    config: LaunchConfig, scenario_file: Path, robots_file: Path, layout_file: Path
+) -> StartOrder:
+    """Every process of a launch in start order; ``layout_file``: the arena's reference
+    markers (:func:`write_layout`)."""
+    recorder = dashboard = None
+    if config.record is not None:
+        bag = Path(config.record).resolve()
+        recorder = recorder_command(bag, config.num_robots, sys.executable)
+    if config.dashboard is not None:
+        dashboard = dashboard_command(config, scenario_file)
+    return StartOrder(
+        recorder,
+        bridge_command(config, scenario_file) if config.world != "none" else None,
+        tracking_commands(config, layout_file),
+        supervisor_command(config, scenario_file),
+        robot_commands(config, scenario_file, robots_file),
+        dashboard,
+    )

@@ -48,6 +48,12 @@ class Child:
                 return line.split(text, 1)[1].strip()
         return None
 
+    def check_running(self) -> None:
+        """LaunchError with the end of its log if it has exited."""
+        if self.proc.poll() is not None:
+            code = self.proc.returncode
+            raise LaunchError(f"{self.name} exited with code {code}:\n{self.tail()}")
+
     def wait_for(
         self, text: str, timeout: float, stopped: Callable[[], bool] = lambda: False
     ) -> None:
