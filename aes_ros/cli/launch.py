@@ -49,6 +49,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--record", type=Path, default=None, metavar="FILE.mcap",
         help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag",
     )  # fmt: skip
+    p.add_argument(
+        "--record-images", type=number_type(float, 0.0, 240.0), default=0.0, metavar="RATE",
+        help="with --record and --tracking camera: also the camera's frames, at most RATE a "
+        "second (default 0: none; a 1280x960 frame is 1.2 MB)",
+    )  # fmt: skip
     p.add_argument("--out", type=Path, default=None, help="output directory (plots, metrics, logs)")
     p.add_argument("--gui", action="store_true", help="show the pybullet GUI")
     p.add_argument(
@@ -143,6 +148,7 @@ def run(args: argparse.Namespace) -> int:
             camera_size=args.camera,
             camera_rate=args.camera_rate,
             world=args.world,
+            record_images=args.record_images,
             camera_source=args.camera_source,
             calibration=args.calibration,
         )

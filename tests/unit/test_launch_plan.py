@@ -107,3 +107,20 @@ def test_start_order_starts_the_recorder_first_and_the_dashboard_last(tmp_path) 
     assert list(recorded.by_name) == [
         "sim_bridge", "supervisor", "robot_host_0", "recorder", "dashboard"
     ]  # fmt: skip
+
+
+def test_camera_frames_are_recorded_only_when_asked_and_by_a_restarted_recorder_too(
+    tmp_path,
+) -> None:
+    from aes_ros.ros.launch.recovery import RestartCommands
+
+    sc = scenario.load("linear").with_robots(4)
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml", tmp_path / "arena.yaml")
+    plain = LaunchConfig(sc, record=tmp_path / "bag", tracking="camera")
+    assert "--images" not in start_order(plain, *files).recorder.argv
+    asked = LaunchConfig(sc, record=tmp_path / "bag", tracking="camera", record_images=2.5)
+    argv = start_order(asked, *files).recorder.argv
+    assert argv[argv.index("--images") + 1] == "2.5"
+    restart = RestartCommands({}, None, tmp_path / "w.npz", tmp_path / "bag", 4, images_rate=2.5)
+    again = restart("recorder")
+    assert again[again.index("--images") + 1] == "2.5"

@@ -224,8 +224,9 @@ class Launcher:
             dashboard.wait_for(names.DASHBOARD_READY, 30.0, self._stopping)
             if (url := dashboard.line_after(names.DASHBOARD_READY)) is not None:
                 self.say(f"launch: dashboard at {url}")
+        state = self.procs.log_dir / "world_state.npz"
         restart = RestartCommands(
-            self._specs, self.monitor, self.procs.log_dir / "world_state.npz", cfg.record, n
+            self._specs, self.monitor, state, cfg.record, n, images_rate=cfg.record_images
         )
         self.supervision = Supervision(
             self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time

@@ -70,6 +70,8 @@ class LaunchConfig:
         simulated overhead camera and the tracker, and the bridge's exact poses go to
         ``/sim/ground_truth/poses`` (what the launcher's outputs are made of);
         ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera.
+    record_images : with ``record``, also the camera's frames, at most this many a
+        second (0: none; a 1280 × 960 frame is 1.2 MB).
     world : ``pybullet`` (the bridge), or ``none``: a real arena, no bridge and no
         simulated camera, every node on wall-clock time, the tracker reading
         ``camera_source`` (a device or a video file) with ``calibration`` (a file of
@@ -103,6 +105,7 @@ class LaunchConfig:
     camera_size: tuple[int, int] = (1280, 960)
     camera_rate: float = 20.0
     world: str = "pybullet"
+    record_images: float = 0.0
     camera_source: str | None = None
     calibration: Path | None = None
     bridge_params: dict[str, Any] = field(default_factory=dict)
@@ -537,11 +540,18 @@ def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
 
 
 def recorder_command(
-    bag: Path, num_robots: int, python: str, after: list[Path] | None = None
+    bag: Path,
+    num_robots: int,
+    python: str,
+    after: list[Path] | None = None,
+    images_rate: float = 0.0,
 ) -> ProcessSpec:
     """The MCAP recorder (:mod:`aes_ros.ros.recorder`) run by ``python``; ``after``: the
-    earlier segments of the recording (a restarted recorder)."""
+    earlier segments of the recording (a restarted recorder); ``images_rate``: the
+    camera's frames a second it also records (0: none)."""
     argv = [python, "-m", "aes_ros.ros.recorder", str(bag), "--robots", str(num_robots)]
+    if images_rate > 0:
+        argv += ["--images", repr(float(images_rate))]
     if after:
         argv += ["--after", *map(str, after)]
     return ProcessSpec("recorder", argv)
@@ -587,7 +597,9 @@ def start_order(
     recorder = dashboard = None
     if config.record is not None:
         bag = Path(config.record).resolve()
-        recorder = recorder_command(bag, config.num_robots, sys.executable)
+        recorder = recorder_command(
+            bag, config.num_robots, sys.executable, images_rate=config.record_images
+        )
     if config.dashboard is not None:
         dashboard = dashboard_command(config, scenario_file)
     return StartOrder(

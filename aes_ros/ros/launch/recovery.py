@@ -87,6 +87,7 @@ class RestartCommands:
     record: Path | None
     num_robots: int
     segments: int = 0
+    images_rate: float = 0.0
 
     def __call__(self, name: str) -> list[str]:
         if name == "recorder":
@@ -98,6 +99,7 @@ class RestartCommands:
                 self.num_robots,
                 sys.executable,
                 [p for p in earlier if p.exists()],
+                self.images_rate,
             )
             return spec.argv
         argv = list(self.specs[name].argv)
