@@ -41,7 +41,7 @@ Measured with this rule in the loop (the linear setup on 9 robots driving at a
 wall, top speed 0.13 m/s, noise on, the new command reaching the robots 0.25 s
 late, 300 seeds): a robot's centre went at most 0.126 m past the margin (95 % of
 runs: under 0.08 m), ≈ 0.13 m/s × 1 s; 4 and 25 robots and ω = −0.7 went less
-far, a command 0.4 s late 0.132 m (``tests/unit/test_arena.py`` runs this loop).
+far, a command 0.4 s late 0.132 m (``tests/unit/test_arena_keeper_rule.py`` runs this loop).
 A camera in the loop adds its delay τ: raise the margin by 0.13 m/s × τ.
 """
 
