@@ -181,3 +181,22 @@ def marker_image(marker_id: int, cell_px: int, dictionary_id: int = DICTIONARY) 
     if not 0 <= marker_id < d.bytesList.shape[0]:
         raise ValueError(f"marker_id: expected 0 … {d.bytesList.shape[0] - 1}, got {marker_id}")
     return cv2.aruco.generateImageMarker(d, int(marker_id), cells * int(cell_px), borderBits=1)
+
+
+def scattered_robots(
+    n: int, extent: tuple[float, float], rng: np.random.Generator, radius: float = 0.040
+) -> tuple[np.ndarray, np.ndarray]:
+    """``base_link`` poses of ``n`` robots scattered over a floor of ``extent`` (width,
+    depth) [m] centred on the origin, bodies (``radius`` [m], Ø 80 mm) inside it and
+    3 mm apart at least: scenes for the camera's tests and benchmarks.
+
+    Returns positions (n, 2) [m] and headings (n,) [rad].
+    """
+    half = np.asarray(extent, dtype=float) / 2 - radius
+    centres: list[np.ndarray] = []
+    while len(centres) < n:
+        c = rng.uniform(-half, half)
+        if all(np.hypot(*(c - o)) > 2 * radius + 0.003 for o in centres):
+            centres.append(c)
+    headings = rng.uniform(-np.pi, np.pi, n)
+    return base_positions(np.array(centres), headings, RobotMarker().offset), headings

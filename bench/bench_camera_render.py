@@ -34,7 +34,14 @@ import numpy as np
 import pybullet as pb
 
 from aes_ros.camera import covering_height, overhead_camera
-from aes_ros.markers import DICTIONARY, RobotMarker, dictionary, marker_centres, marker_corners
+from aes_ros.markers import (
+    DICTIONARY,
+    RobotMarker,
+    dictionary,
+    marker_centres,
+    marker_corners,
+    scattered_robots,
+)
 from aes_ros.model import wrap_angle
 from sim_bridge.camera_render import CameraRenderer
 from sim_bridge.mona import MonaGeometry
@@ -51,19 +58,6 @@ CONFIGS = [(25, (2.0, 1.5), (1280, 960)), (100, (4.0, 3.0), (2048, 1536))]
 SWEEP = [(1600, 1200), (1800, 1350), (2048, 1536), (2592, 1944)]
 
 
-def random_poses(n: int, arena: tuple[float, float], rng: np.random.Generator):
-    """``base_link`` poses of ``n`` robots inside the arena, bodies not overlapping."""
-    radius = MonaGeometry().body_radius
-    half = np.array(arena) / 2 - radius
-    centres: list[np.ndarray] = []
-    while len(centres) < n:
-        c = rng.uniform(-half, half)
-        if all(np.hypot(*(c - o)) > 2 * radius + 0.003 for o in centres):
-            centres.append(c)
-    headings = rng.uniform(-np.pi, np.pi, n)
-    return marker_centres(np.array(centres), headings, -RobotMarker().offset), headings
-
-
 def camera_for(arena, size, distortion=MILD):
     extent = (arena[0] + 2 * MARGIN, arena[1] + 2 * MARGIN)
     height = covering_height(extent, *size, HFOV)
@@ -75,7 +69,7 @@ def time_renderer(n, arena, size, frames: int) -> float:
     cam = camera_for(arena, size)
     renderer = CameraRenderer(cam, noise_sigma=2.0, blur_sigma=0.7, rng=0)
     rng = np.random.default_rng(1)
-    scenes = [random_poses(n, arena, rng) for _ in range(min(frames, 10))]
+    scenes = [scattered_robots(n, arena, rng) for _ in range(min(frames, 10))]
     renderer.render(*scenes[0])  # builds the markers' patches
     times = []
     for k in range(frames):
@@ -101,7 +95,7 @@ def time_pybullet(n, arena, size, frames: int) -> float:
             physicsClientId=client,
         )
         rng = np.random.default_rng(1)
-        positions, _ = random_poses(n, arena, rng)
+        positions, _ = scattered_robots(n, arena, rng)
         bodies = [
             pb.createMultiBody(0, -1, shape, (x, y, g.body_z), physicsClientId=client)
             for x, y in positions
@@ -138,7 +132,7 @@ def accuracy(size, frames: int, n: int = 100, arena=(4.0, 3.0)) -> dict:
     found = 0
     pos_err, head_err, times = [], [], []
     for _ in range(frames):
-        positions, headings = random_poses(n, arena, rng)
+        positions, headings = scattered_robots(n, arena, rng)
         image = renderer.render(positions, headings)
         start = time.perf_counter()
         seen = detect_markers(image)
@@ -174,7 +168,7 @@ def dictionary_accuracy(size, dictionary_id: int, frames: int, n=100, arena=(4.0
     rng = np.random.default_rng(2)
     found, errors = 0, []
     for _ in range(frames):
-        positions, headings = random_poses(n, arena, rng)
+        positions, headings = scattered_robots(n, arena, rng)
         image = renderer.render(positions, headings)
         corners, ids, _ = detector.detectMarkers(image)
         if ids is None:

@@ -6,7 +6,6 @@ made-up inputs."""
 from __future__ import annotations
 
 import csv
-import importlib.util
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -15,6 +14,7 @@ from types import ModuleType
 
 import numpy as np
 import pytest
+from helpers.bench import bench_module
 
 REPO = Path(__file__).resolve().parents[2]
 BENCH = REPO / "bench" / "bench_tracking.py"
@@ -22,13 +22,8 @@ BENCH = REPO / "bench" / "bench_tracking.py"
 
 @pytest.fixture(scope="module")
 def bench() -> Iterator[ModuleType]:
-    spec = importlib.util.spec_from_file_location("bench_tracking", BENCH)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_tracking"] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    yield module
-    del sys.modules["bench_tracking"]
+    with bench_module("bench_tracking") as module:
+        yield module
 
 
 def test_quick_run_tracks_every_robot(ros_env, tmp_path) -> None:

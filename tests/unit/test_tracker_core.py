@@ -11,7 +11,13 @@ import pytest
 import yaml
 
 from aes_ros.camera import covering_height, overhead_camera
-from aes_ros.markers import ReferenceMarker, RobotMarker, marker_centres, reference_ids
+from aes_ros.markers import (
+    ReferenceMarker,
+    RobotMarker,
+    marker_centres,
+    reference_ids,
+    scattered_robots,
+)
 from aes_ros.model import wrap_angle
 from sim_bridge.camera_render import CameraRenderer
 from tracker_node.calibration import (
@@ -26,20 +32,6 @@ from tracker_node.pose import marker_poses
 
 MILD = (-0.08, 0.02, 0.0005, -0.0005, 0.0)
 VIEW_MARGIN = 0.2  #: [m] seen around the arena; the reference markers lie in it
-BODY = 0.04  #: Mona's body radius [m]
-
-
-def random_poses(n: int, arena: tuple[float, float], rng: np.random.Generator):
-    """``base_link`` poses of ``n`` robots whose bodies lie inside the arena, none overlapping."""
-    offset = RobotMarker().offset
-    half = np.array(arena) / 2 - BODY
-    centres: list[np.ndarray] = []
-    while len(centres) < n:
-        c = rng.uniform(-half, half)
-        if all(np.hypot(*(c - o)) > 2 * BODY + 0.003 for o in centres):
-            centres.append(c)
-    headings = rng.uniform(-np.pi, np.pi, n)
-    return marker_centres(np.array(centres), headings, -offset), headings
 
 
 def corner_references(arena: tuple[float, float], size: float = 0.08) -> list[ReferenceMarker]:
@@ -76,7 +68,7 @@ def test_round_trip_finds_every_robot_within_the_accuracy_bounds(
     rng = np.random.default_rng(7)
     pos_err, head_err = [], []
     for _ in range(2):
-        positions, headings = random_poses(n, arena, rng)
+        positions, headings = scattered_robots(n, arena, rng)
         found = detect_markers(renderer.render(positions, headings))
         assert found.ids.tolist() == list(range(n))  # all, once each
         assert found.duplicates == () and found.at_border == ()
@@ -96,7 +88,7 @@ def test_calibration_from_reference_markers_recovers_the_camera() -> None:
     cam, renderer = setup(arena, 1280, 960, references=refs)
     layout = ArenaLayout(tuple(refs))
     rng = np.random.default_rng(3)
-    positions, headings = random_poses(25, arena, rng)
+    positions, headings = scattered_robots(25, arena, rng)
     image = renderer.render(positions, headings)
     calibration, residuals = calibrate(image, cam.K, cam.dist, layout)
     assert residuals.ids.tolist() == sorted(r.marker_id for r in refs)
