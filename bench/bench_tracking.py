@@ -224,7 +224,7 @@ class Probe:
             self.got.tracked.append((t, stamp, positions, headings))
 
     def on_diagnostics(self, msg) -> None:
-        from tracker_node.node import TRACKER_STATUS
+        from aes_ros.ros.diagnostics import TRACKER_STATUS
 
         for status in msg.status:
             if status.name == TRACKER_STATUS:

@@ -213,7 +213,9 @@ class RobotController:
             ids = self._neighbors if slots is None else self._neighbors[slots]
             keep, changes = self.liveness.alive(ids, stamp_ns)
             for change in changes:
-                if change.silent:
+                if change.silent and change.seconds != change.seconds:  # NaN: lost
+                    self._warn(f"neighbour {change.neighbor} lost by the tracker: left out")
+                elif change.silent:
                     self._warn(
                         f"neighbour {change.neighbor} silent for {change.seconds:.2f} s: left out"
                     )

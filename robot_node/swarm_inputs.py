@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped, PoseArray, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.clock import Clock, ClockType
@@ -33,6 +34,7 @@ from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_odometry, decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive
+from aes_ros.ros.diagnostics import lost_robots
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, SENSOR
 from robot_node.rotation_center import rotation_center_rule
@@ -77,6 +79,9 @@ class SwarmInputs:
             PointStamped, names.ROTATION_CENTER, self.on_rotation_center, LATCHED
         )
         node.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
+        #: The robots a tracker has lost (its ``/diagnostics``): left out of every sum.
+        self.lost: frozenset[int] = frozenset()
+        node.create_subscription(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
 
     # --- the robots of this process -------------------------------------------------
 
@@ -84,6 +89,7 @@ class SwarmInputs:
         # Sorted in for the new robot alone: re-sorting all was quadratic in a host
         # adding its robots one by one.
         self.robots.append(robot)
+        robot.controller.liveness.lost = self.lost
         if robot.uses_poses:
             self._poses_robots.append(robot)
         self._update()
@@ -254,6 +260,18 @@ class SwarmInputs:
             self._warn(f"dropped /swarm/rotation_center: {exc}")
             return
         self.center.on_center(stamp_to_ns(msg.header.stamp), point)
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """The tracker's lost robots (its status on ``/diagnostics``, once a second):
+        their poses are old, so every robot here leaves them out of its spring sum,
+        as it does a neighbour gone silent (:mod:`robot_node.liveness`)."""
+        lost = lost_robots(msg)
+        if lost is None or frozenset(lost) == self.lost:
+            return
+        self.lost = frozenset(lost)
+        for robot in self.robots:
+            robot.controller.liveness.lost = self.lost
+        self.node.get_logger().info(f"the tracker has lost robots {sorted(self.lost)}")
 
     def on_enabled(self, msg: Bool) -> None:
         for robot in self.robots:

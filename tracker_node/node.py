@@ -45,6 +45,7 @@ from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import PoseArrayEncoder, decode_image
 from aes_ros.ros.conversions import BadMessageError
+from aes_ros.ros.diagnostics import TRACKER_STATUS
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
@@ -53,9 +54,6 @@ from tracker_node.camera_info import load_camera_info
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses
 from tracker_node.tracking import Tracks
-
-#: The status's name on ``/diagnostics``.
-TRACKER_STATUS = "tracker: robots"
 
 
 class TrackerNode(Node):

@@ -18,6 +18,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 
 #: The status's name.
 ROBOTS_STATUS = "sim_bridge: robots"
+#: The tracker's status (tracker_node.node): what the camera sees, and the ``lost``
+#: robots, which every robot process leaves out of its robots' spring sums.
+TRACKER_STATUS = "tracker: robots"
 #: Wall seconds without a cmd_vel after which a robot counts as silent.
 SILENT_AFTER = 1.0
 
@@ -40,12 +43,22 @@ def robots_status(n: int, silent: Sequence[int], stamp: Time) -> DiagnosticArray
 def silent_robots(msg: DiagnosticArray) -> list[int] | None:
     """The silent robots' ids of a ``/diagnostics`` message; None if it has no
     :data:`ROBOTS_STATUS` (another node's diagnostics) or a malformed one."""
+    return _ids(msg, ROBOTS_STATUS, "silent")
+
+
+def lost_robots(msg: DiagnosticArray) -> list[int] | None:
+    """The ids the tracker has lost, of a ``/diagnostics`` message; None if it has no
+    :data:`TRACKER_STATUS` or a malformed one."""
+    return _ids(msg, TRACKER_STATUS, "lost")
+
+
+def _ids(msg: DiagnosticArray, name: str, key: str) -> list[int] | None:
     for status in msg.status:
-        if status.name != ROBOTS_STATUS:
+        if status.name != name:
             continue
         values = {kv.key: kv.value for kv in status.values}
         try:
-            return [int(i) for i in values.get("silent", "").split()]
+            return [int(i) for i in values.get(key, "").split()]
         except ValueError:
             return None
     return None

@@ -309,3 +309,43 @@ def test_a_corrupt_video_source_exits_naming_it(spawn, scene, tmp_path, content)
     assert proc.wait(30) == 1
     text = spawn.log(proc).read_text()
     assert f"cannot start: --source {video}" in text, text
+
+
+def test_robots_leave_out_a_neighbour_the_tracker_lost(spawn, probe) -> None:
+    """A robot host fed poses by the test, and the tracker's status on /diagnostics:
+    a robot the tracker lost (its pose is old) is left out of its neighbours' spring
+    sums, in the host that runs it too, and taken back once the tracker sees it again."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from helpers.messages import poses_msg
+
+    from aes_ros import scenario
+    from aes_ros.ros.diagnostics import TRACKER_STATUS
+
+    host = spawn.start(
+        "aes-robot-host", "--ros-args", "-p", "scenario:=linear", "-p", "num_robots:=4",
+        name="host",
+    )  # fmt: skip
+    log = spawn.log(host)
+    xy, yaw = scenario.load("linear").with_robots(4).initial_state(seed=0)
+    poses = probe.publisher(PoseArray, names.POSES, SENSOR)
+    step = [0]
+
+    def publish() -> None:
+        step[0] += 1
+        poses.publish(poses_msg(xy, yaw, 1.0 + 0.05 * step[0]))
+
+    probe.every(0.05, publish)
+    diagnostics = probe.publisher(DiagnosticArray, names.DIAGNOSTICS, LATCHED)
+
+    def tracker_says(lost: str) -> None:
+        status = DiagnosticStatus(name=TRACKER_STATUS, values=[KeyValue(key="lost", value=lost)])
+        diagnostics.publish(DiagnosticArray(status=[status]))
+
+    tracker_says("1")
+    probe.wait(lambda: "lost by the tracker" in log.read_text(), 20.0, "robot 1 left out")
+    text = log.read_text()
+    assert "the tracker has lost robots [1]" in text
+    assert "neighbour 1 lost by the tracker: left out" in text
+    assert "neighbour 0 lost" not in text and "neighbour 2 lost" not in text
+    tracker_says("")
+    probe.wait(lambda: "neighbour 1 heard again" in log.read_text(), 10.0, "robot 1 back")

@@ -115,6 +115,23 @@ def test_a_silent_neighbour_is_left_out_and_taken_back_when_heard_again() -> Non
     assert log.notes == ["neighbour 0 heard again: back in the sum"]
 
 
+def test_a_neighbour_the_tracker_lost_is_left_out_until_it_is_seen_again() -> None:
+    """With a camera in the loop: the tracker's lost robots (their poses are old) are
+    left out like silent ones, even in this robot's own process (never heard from)."""
+    ctl, log = controller()
+    assert len(poses(ctl, 1.0).neighbor_positions) == 2
+    ctl.liveness.lost = frozenset({2, 7})
+    job = poses(ctl, 1.05)
+    np.testing.assert_array_equal(job.neighbor_positions, XY[[0]])
+    np.testing.assert_array_equal(job.rest_lengths, [0.2])
+    assert log.warnings == ["neighbour 2 lost by the tracker: left out"]
+    poses(ctl, 1.1)
+    assert len(log.warnings) == 1  # said once
+    ctl.liveness.lost = frozenset()
+    assert len(poses(ctl, 1.15).neighbor_positions) == 2
+    assert log.notes == ["neighbour 2 heard again: back in the sum"]
+
+
 def test_a_neighbour_never_heard_from_counts_as_alive() -> None:
     live = NeighborLiveness(timeout_ns=S)
     live.heard(4, 0)
