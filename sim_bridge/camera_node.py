@@ -32,6 +32,7 @@ from geometry_msgs.msg import PoseArray
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
+from aes_ros.arena import arena_or_none
 from aes_ros.camera import PinholeCamera, covering_height, overhead_camera
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
@@ -110,10 +111,8 @@ class ArenaCameraNode(Node):
             "layout", "", rp.text_descriptor("arena layout file with reference markers", **ro)
         ).value
         seed = self.declare_parameter("seed", 0, rp.int_descriptor("noise seed", 0, 2**31 - 1))
-        if len(arena) != 4 or not (arena[0] < arena[1] and arena[2] < arena[3]):
-            raise ParameterError(
-                f"arena: expected [x_min, x_max, y_min, y_max] with min < max, got {list(arena)}"
-            )
+        if arena_or_none(list(arena)) is None:  # checked as the supervisor's arena is
+            raise ParameterError("arena: the camera needs the floor it sees, four numbers")
         if len(distortion) != 5:
             raise ParameterError(f"distortion: expected 5 numbers, got {len(distortion)}")
         try:
@@ -134,7 +133,6 @@ class ArenaCameraNode(Node):
         self.next_ns = 0
         #: frames awaiting their exposure delay: (due, encoded, stamp sec, stamp nanosec)
         self.held: list[tuple[int, bytes, int, int]] = []
-        self.frames = self.dropped = 0
 
         info = CameraInfo(**dataclasses.asdict(self.camera.camera_info()))
         info.header.frame_id = names.CAMERA_FRAME
@@ -163,9 +161,7 @@ class ArenaCameraNode(Node):
             self.next_ns, self.held = 0, []
         if now >= self.next_ns:
             self.next_ns = max(self.next_ns + self.period_ns, now)
-            if self.rng.random() < self.drop:
-                self.dropped += 1
-            else:
+            if self.rng.random() >= self.drop:
                 frame = self.renderer.render(positions, headings)
                 encoded = encode_image(sec, nanosec, names.CAMERA_FRAME, frame, "mono8")
                 self.held.append((now + self.delay_ns, encoded, sec, nanosec))
@@ -174,7 +170,6 @@ class ArenaCameraNode(Node):
             self.info.header.stamp.sec, self.info.header.stamp.nanosec = sec, nanosec
             self.image_pub.publish(encoded)
             self.info_pub.publish(self.info)
-            self.frames += 1
 
 
 def arena_camera(

@@ -37,8 +37,10 @@ import cv2
 import numpy as np
 import yaml
 
+from aes_ros.arena import arena_or_none
 from aes_ros.camera import PinholeCamera
 from aes_ros.markers import N_IDS, ReferenceMarker, RobotMarker, reference_ids
+from aes_ros.params import ParameterError
 from tracker_node.detection import Detections, detect_markers
 
 #: The fewest reference markers a calibration accepts.
@@ -139,11 +141,10 @@ def parse_layout(data: Any, source: str = "layout") -> ArenaLayout:
     arena = None
     if data.get("arena") is not None:
         box = _array(data, "arena", (4,))
-        if not (box[0] < box[1] and box[2] < box[3]):
-            raise CalibrationError(
-                f"arena: expected [x_min, x_max, y_min, y_max] with min < max, got {box.tolist()}"
-            )
-        arena = tuple(float(v) for v in box)
+        try:  # the rule of the supervisor's arena (aes_ros.params)
+            arena = arena_or_none(box.tolist()).bounds
+        except ParameterError as exc:
+            raise CalibrationError(str(exc)) from None
     refs = data.get("references")
     if not isinstance(refs, Sequence) or isinstance(refs, str):
         raise CalibrationError(
