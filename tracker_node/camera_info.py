@@ -9,6 +9,7 @@ for its camera. Only the plumb_bob model is read (OpenCV's ``k1 k2 p1 p2 k3``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -16,7 +17,7 @@ import numpy as np
 import yaml
 
 from aes_ros.camera import CameraInfo
-from tracker_node.calibration import CalibrationError
+from tracker_node.calibration import CalibrationError, _mapping, _read_yaml
 
 
 def save_camera_info(info: CameraInfo, path: Path | str, name: str = "arena_camera") -> Path:
@@ -40,20 +41,27 @@ def save_camera_info(info: CameraInfo, path: Path | str, name: str = "arena_came
     return path
 
 
+def intrinsics(k: Sequence[float], d: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
+    """K (3, 3) [px] and the plumb_bob distortion (5,) (zeros where ``d`` is shorter)
+    of a camera_info's ``k`` (9, row-major) and ``d``; CalibrationError for non-finite
+    values or a focal length that is not > 0 (what no tracker can map through)."""
+    K = np.asarray(k, dtype=float).reshape(3, 3)
+    dist = np.zeros(5)
+    dist[: min(5, len(d))] = np.asarray(d, dtype=float)[:5]
+    if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dist))):
+        raise CalibrationError("non-finite intrinsics or distortion")
+    if K[0, 0] <= 0.0 or K[1, 1] <= 0.0:
+        raise CalibrationError(f"focal length {K[0, 0]:g}, {K[1, 1]:g} px; need > 0")
+    return K, dist
+
+
 def load_camera_info(path: Path | str) -> tuple[np.ndarray, np.ndarray, tuple[int, int]]:
     """(K (3, 3) [px], dist (5,), (width, height) [px]) of a ROS camera_info YAML file.
 
     Raises CalibrationError naming the field for a missing, mis-shaped, non-finite or
     impossible value (a focal length <= 0, a model other than plumb_bob).
     """
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise CalibrationError(f"{path}: cannot read ({exc.strerror})") from None
-    except yaml.YAMLError as exc:
-        raise CalibrationError(f"{path}: not YAML ({exc})") from None
-    if not isinstance(data, dict):
-        raise CalibrationError(f"{path}: expected a camera_info mapping")
+    data = _mapping(_read_yaml(path), f"{path}")
 
     def field(name: str, size: int) -> np.ndarray:
         value = data.get(name)
@@ -77,14 +85,11 @@ def load_camera_info(path: Path | str) -> tuple[np.ndarray, np.ndarray, tuple[in
     model = data.get("distortion_model", "plumb_bob")
     if model != "plumb_bob":
         raise CalibrationError(f"{path}: distortion_model: {model!r}; only plumb_bob is read")
-    K = field("camera_matrix", 9).reshape(3, 3)
-    if K[0, 0] <= 0 or K[1, 1] <= 0:
-        raise CalibrationError(
-            f"{path}: camera_matrix: focal lengths {K[0, 0]:g}, {K[1, 1]:g} px; need > 0"
-        )
     coefficients = data.get("distortion_coefficients", {"data": [0.0] * 5})
     count = len(coefficients.get("data") or []) if isinstance(coefficients, dict) else 0
-    dist = np.zeros(5)
-    if count:
-        dist[: min(5, count)] = field("distortion_coefficients", count)[:5]
+    d = field("distortion_coefficients", count) if count else ()
+    try:
+        K, dist = intrinsics(field("camera_matrix", 9), d)
+    except CalibrationError as exc:
+        raise CalibrationError(f"{path}: camera_matrix: {exc}") from None
     return K, dist, (size[0], size[1])

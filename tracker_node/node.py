@@ -50,7 +50,7 @@ from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
 from tracker_node.calibration import Calibration, CalibrationError, calibrate, load_layout
-from tracker_node.camera_info import load_camera_info
+from tracker_node.camera_info import intrinsics, load_camera_info
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses
 from tracker_node.tracking import Tracks
@@ -109,7 +109,6 @@ class TrackerNode(Node):
         self.tracks = Tracks(n, references=frozenset(references))
         self.encoder = PoseArrayEncoder(n, names.WORLD_FRAME)
         self.frames = 0
-        self.published = 0
         self._frame_walls: list[float] = []
         self._reprojection = float("nan")
         self._stamp_ns = 0
@@ -134,17 +133,15 @@ class TrackerNode(Node):
 
     def on_camera_info(self, msg: CameraInfo) -> None:
         """The camera's intrinsics; a broken one is dropped and the last good one kept."""
-        K = np.asarray(msg.k, dtype=float).reshape(3, 3)
-        dist = np.zeros(5)
-        dist[: min(5, len(msg.d))] = np.asarray(msg.d, dtype=float)[:5]
-        if not (np.all(np.isfinite(K)) and np.all(np.isfinite(dist))):
-            self._warn("dropped camera_info: non-finite intrinsics or distortion")
-        elif K[0, 0] <= 0.0 or K[1, 1] <= 0.0:
-            self._warn(f"dropped camera_info: focal length {K[0, 0]:g}, {K[1, 1]:g} px; need > 0")
-        elif msg.width == 0 or msg.height == 0:
+        try:
+            K, dist = intrinsics(msg.k, msg.d)
+        except CalibrationError as exc:
+            self._warn(f"dropped camera_info: {exc}")
+            return
+        if msg.width == 0 or msg.height == 0:
             self._warn(f"dropped camera_info: image size {msg.width}x{msg.height}")
-        else:
-            self.info = (K, dist, (int(msg.width), int(msg.height)))
+            return
+        self.info = (K, dist, (int(msg.width), int(msg.height)))
 
     def on_image(self, data: bytes) -> None:
         try:
@@ -200,7 +197,6 @@ class TrackerNode(Node):
         self.poses_pub.publish(
             self.encoder.encode(sec, nanosec, self.tracks.positions, self.tracks.headings)
         )
-        self.published += 1
 
     def _calibrated(self, image: np.ndarray) -> bool:
         if self.calibration is not None:
