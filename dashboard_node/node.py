@@ -252,8 +252,8 @@ class DashboardNode(Node):
             parameters=[p.to_parameter_msg() for p in parameters]
         )
 
-        def answer(result: Any) -> tuple[bool, str]:
-            ok, reason = result.successful, result.reason
+        def answer(response: Any) -> tuple[bool, str]:
+            ok, reason = response.result.successful, response.result.reason
             return ok, f"supervisor: {said}" if ok else f"supervisor refused {said}: {reason}"
 
         self._call(self.drive_client, request, future, answer)
@@ -263,18 +263,15 @@ class DashboardNode(Node):
         client: Any,
         request: Any,
         future: concurrent.futures.Future,
-        answer: Callable[[Any], tuple[bool, str]] | None = None,
+        answer: Callable[[Any], tuple[bool, str]] = lambda r: (r.success, r.message),
     ) -> None:
+        """Call ``client`` with ``request``; ``answer`` turns its response into the
+        future's (ok, message)."""
         if not client.service_is_ready():
             future.set_result((False, f"{client.srv_name}: nobody offers it"))
             return
         call = client.call_async(request)
-        if answer is None:
-            call.add_done_callback(
-                lambda done: future.set_result((done.result().success, done.result().message))
-            )
-        else:
-            call.add_done_callback(lambda done: future.set_result(answer(done.result().result)))
+        call.add_done_callback(lambda done: future.set_result(answer(done.result())))
 
     def _set_everywhere(self, control: SetGain, future: concurrent.futures.Future) -> None:
         """Set a gain on every robot node and the supervisor; the result counts the
