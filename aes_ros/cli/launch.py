@@ -21,7 +21,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS, tracking_arena
+from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -124,9 +124,6 @@ def run(args: argparse.Namespace) -> int:
 
     sc = load_scenario(args)
     overrides = scenario.parse_assignments(args.set)
-    if args.tracking != "none" and args.world != "none" and not sc.arena:
-        # the camera sees this arena: the supervisor keeps the swarm in it
-        sc = sc.with_overrides({"arena": list(tracking_arena(sc))}, "--tracking")
     try:
         config = LaunchConfig(
             scenario=sc,

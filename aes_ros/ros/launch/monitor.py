@@ -64,9 +64,9 @@ class Monitor:
         self, n_robots: int, poses_topic: str = names.POSES, wall_clock: bool = False
     ) -> None:
         self.n = n_robots
-        #: Wall-clock stamps (a real arena): times count from the first pose's stamp,
-        #: ``origin`` [s since the epoch], so that they keep their digits in the outputs.
-        self.wall_clock = wall_clock
+        #: With wall-clock stamps (a real arena) times count from the first pose's
+        #: stamp, ``origin`` [s since the epoch], so that they keep their digits in the
+        #: outputs; sim time counts from 0.
         self.origin: float | None = None if wall_clock else 0.0
         self.context = rclpy.Context()
         with _udp_only():

@@ -159,6 +159,10 @@ class LaunchConfig:
         for name, ok, hint in checks:
             if not ok:
                 raise ValueError(f"{name}: {getattr(self, name)!r} is not allowed; {hint}")
+        if self.simulated_camera and not self.scenario.arena:
+            # what the camera sees is what the supervisor's arena keeper keeps them in
+            arena = list(tracking_arena(self.scenario))
+            self.scenario = self.scenario.with_overrides({"arena": arena}, "--tracking")
 
     @property
     def sim_time(self) -> bool:
@@ -166,12 +170,16 @@ class LaunchConfig:
         return self.world != "none"
 
     @property
+    def simulated_camera(self) -> bool:
+        """The bridge's world seen by the simulated camera, the robots on the tracker."""
+        return self.tracking != "none" and self.world != "none"
+
+    @property
     def poses_topic(self) -> str:
         """The poses the launcher samples and the outputs are made of: the bridge's exact
         ones (``/sim/ground_truth/poses`` when the robots read the tracker's), or in a
         real arena the tracker's (``/swarm/poses``)."""
-        tracked = self.tracking != "none" and self.world != "none"
-        return names.GROUND_TRUTH_POSES if tracked else names.POSES
+        return names.GROUND_TRUTH_POSES if self.simulated_camera else names.POSES
 
     @property
     def num_robots(self) -> int:
@@ -346,9 +354,7 @@ def bridge_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
         params["clip"] = bool(config.clip)
     params.update(config.bridge_params)
     # Tracked: the exact poses are for evaluation only; /swarm/poses is the tracker's.
-    remap = (
-        ["-r", f"{names.POSES}:={names.GROUND_TRUTH_POSES}"] if config.tracking != "none" else []
-    )
+    remap = ["-r", f"{names.POSES}:={names.GROUND_TRUTH_POSES}"] if config.simulated_camera else []
     return ProcessSpec(names.SIM_BRIDGE_NODE, ["aes-sim-bridge", *ros_args(params, *remap)])
 
 
@@ -451,7 +457,8 @@ def node_commands(
 def tracking_arena(scenario: Scenario) -> tuple[float, float, float, float]:
     """The arena a tracking launch's camera sees, ``(x_min, x_max, y_min, y_max)`` [m]:
     the scenario's ``arena`` (which the supervisor's arena keeper also keeps the swarm
-    in), else the initial formation with :data:`TRACKING_ROOM` around it, at least
+    in; a tracking LaunchConfig sets it to this when the scenario has none), else the
+    initial formation with :data:`TRACKING_ROOM` around it, at least
     :data:`TRACKING_MIN_ARENA` and 4:3 like the camera's picture."""
     if scenario.arena:
         return tuple(float(v) for v in scenario.arena)  # type: ignore[return-value]
@@ -467,7 +474,7 @@ def tracking_arena(scenario: Scenario) -> tuple[float, float, float, float]:
 def write_layout(config: LaunchConfig, path: Path) -> Path:
     """The arena layout of a tracking launch (reference markers off the corners of
     :func:`tracking_arena`) written to ``path``, for the camera and the tracker."""
-    if config.tracking != "none" and config.world != "none":
+    if config.simulated_camera:
         from tracker_node.calibration import corner_layout, save_layout
 
         save_layout(corner_layout(tracking_arena(config.scenario)), path)
