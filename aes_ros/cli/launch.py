@@ -160,8 +160,7 @@ def run(args: argparse.Namespace) -> int:
     if result.summary:
         print(f"{result.summary}  [{result.wall_time:.1f} s wall, outputs in {args.out}]")
     else:
-        t = result.times
-        span = t[-1] - t[0] if len(t) else 0.0
+        span = result.t_last - result.t_go if result.samples else 0.0
         print(f"launch: ran {span:.1f} s of sim time in {result.wall_time:.1f} s wall")
     if args.record is not None:
         print(f"bag: {args.record}")

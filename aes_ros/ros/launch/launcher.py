@@ -58,8 +58,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from aes_ros.report import progress
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch import preflight
@@ -88,7 +86,9 @@ from aes_ros.run_writer import RunWriter
 class LaunchResult:
     """What a run produced.
 
-    times : (T,) sim time [s]; positions : (T, N, 2) [m]; headings : (T, N) [rad].
+    samples : pose samples taken from ``t_go`` on; t_last : sim time [s] of the last.
+    The samples themselves are in ``out_dir`` (:func:`aes_ros.report.load_trajectory`):
+    a run of hours is not held in memory.
     t_go : sim time [s] of the first sample (the last one before every robot moved).
     stopped_by : None when the run lasted ``duration``, else the signal's name.
     summary : the one-line summary of write_run_outputs ("" when nothing was written).
@@ -99,9 +99,8 @@ class LaunchResult:
     events : every fault and recovery (``events.csv``).
     """
 
-    times: np.ndarray
-    positions: np.ndarray
-    headings: np.ndarray
+    samples: int
+    t_last: float
     t_go: float
     wall_time: float
     stopped_by: str | None = None
@@ -263,11 +262,15 @@ class Launcher:
     def _stream(self) -> None:
         """Hand the samples taken since the last call to the output writer."""
         mon, writer = self.monitor, self.writer
+        if self.t_go is not None and writer is None:  # nothing to write: keep the newest
+            mon.release(mon.count)
         if writer is None:
             return
-        self._streamed = writer.add_from(
-            mon.times, mon.positions, mon.headings, self._streamed, self._t_end
+        held = mon.offset
+        self._streamed = held + writer.add_from(
+            mon.times, mon.positions, mon.headings, self._streamed - held, self._t_end
         )
+        mon.release(self._streamed)
         if writer.error is not None and self.failure is None:
             self.failure = f"the outputs are incomplete: {writer.error}"
             self.events.record(
@@ -286,13 +289,13 @@ class Launcher:
         assert mon is not None, "start() first"
         checks = (self.procs.check_alive, self._check_start)
         moved_at = mon.wait_all_moving(self.config.start_timeout, checks, self._stopping)
-        self.t_go = mon.times[mon.last_unmoved] if mon.times else 0.0
+        self.t_go = mon.sample(mon.last_unmoved)[0] if mon.count else 0.0
         if moved_at is not None:
             self.go_index = mon.last_unmoved
             self._begin_outputs()
             self.say(
                 f"launch: all {mon.n} robots moving at sim time "
-                f"{mon.times[moved_at]:.2f} s (wall {self.wall_time:.1f} s)"
+                f"{mon.sample(moved_at)[0]:.2f} s (wall {self.wall_time:.1f} s)"
             )
         return self.t_go
 
@@ -341,10 +344,6 @@ class Launcher:
         self.say(f"launch: {self.procs.stop_summary(self.killed)}")
         return self.killed
 
-    def samples(self, t_end: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(times (T,), positions (T, N, 2), headings (T, N)) from the run's start to t_end."""
-        return self.monitor.samples(self.go_index, t_end)
-
     def cleanup(self, ok: bool) -> None:
         """Remove the temporary work directory of a successful run without out_dir."""
         if ok and self._own_work_dir:
@@ -378,15 +377,16 @@ def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchRe
             if killed:
                 say(f"launch: had to SIGKILL {', '.join(killed)}")
             launcher.cleanup(ok and launcher.failure is None and not killed)
-    times, pos, head = launcher.samples(None if config.run_time == 0 else launcher._t_end)
+    mon = launcher.monitor
+    t_last = min(mon.times[-1], launcher._t_end) if mon is not None and mon.times else 0.0
+    samples = max(0, mon.count - launcher.go_index) if mon is not None else 0
     events = launcher.events.events if launcher.events is not None else []
     result = LaunchResult(
-        times, pos, head, float(launcher.t_go), launcher.wall_time,
+        samples, t_last, float(launcher.t_go or 0.0), launcher.wall_time,
         stopped_by=launcher.stop_reason, killed=killed, exit_codes=launcher.exit_codes,
         failure=launcher.failure, events=events,
     )  # fmt: skip
     if launcher.stop_reason is not None:
-        t_last = times[-1] if len(times) else 0.0
         say(f"launch: stopped by {launcher.stop_reason} at sim time {t_last:.2f} s")
     if launcher.writer is not None:
         result.summary = launcher.writer.finish()

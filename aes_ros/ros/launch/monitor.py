@@ -53,7 +53,10 @@ class Monitor:
 
     ``times`` (sim time [s]), ``positions`` ((N, 2) each) and ``headings`` ((N,)
     each) grow with every new ``/swarm/poses`` message; a message with an older
-    stamp (the bridge was restarted or reset its clock) starts them over.
+    stamp (the bridge was restarted or reset its clock) starts them over. They hold
+    a window of the samples: sample ``k`` (counted from the first, :attr:`count` in
+    all) is ``times[k - offset]``, and :meth:`release` drops the ones the caller
+    is done with (written to disk), so that a run of hours keeps its memory flat.
     ``clock`` is the latest ``/clock`` [s]. ``desired`` and ``enabled`` are the
     supervisor's latest ``/swarm/desired_velocity`` and ``/swarm/enabled`` (what a
     restarted supervisor is told to carry on with). ``moved`` says which robots have
@@ -90,6 +93,10 @@ class Monitor:
         self.times: list[float] = []
         self.positions: list[np.ndarray] = []
         self.headings: list[np.ndarray] = []
+        #: The number of the sample in ``times[0]``.
+        self.offset = 0
+        #: The first sample's positions and headings (what :meth:`all_moving` compares with).
+        self.first: tuple[np.ndarray, np.ndarray] | None = None
         self.clock = 0.0
         self.bad = 0
         #: How many times the samples started over (a bridge's clock went back).
@@ -121,9 +128,12 @@ class Monitor:
                 self.times.clear()
                 self.positions.clear()
                 self.headings.clear()
+                self.offset, self.first = 0, None
                 self.restarts += 1
             else:
                 return
+        if self.first is None:
+            self.first = (pos, head)
         self.times.append(t)
         self.positions.append(pos)
         self.headings.append(head)
@@ -171,6 +181,29 @@ class Monitor:
             return bridges
         return supervisors if len(supervisors) > 1 else []
 
+    @property
+    def count(self) -> int:
+        """Samples taken since the first (or since the last start-over)."""
+        return self.offset + len(self.times)
+
+    def sample(self, k: int) -> tuple[float, np.ndarray, np.ndarray]:
+        """Sample ``k``: (sim time [s], positions (N, 2), headings (N,)); it must not
+        have been released."""
+        i = k - self.offset
+        if not 0 <= i < len(self.times):
+            raise IndexError(f"sample {k} is not held (samples {self.offset}..{self.count - 1})")
+        return self.times[i], self.positions[i], self.headings[i]
+
+    def release(self, before: int) -> None:
+        """Forget the samples before sample ``before`` (the newest one is always kept:
+        progress lines and a restarted bridge read it)."""
+        drop = min(before - self.offset, len(self.times) - 1)
+        if not self.moved.all():  # all_moving has yet to look at them
+            drop = min(drop, self._move_checked - self.offset)
+        if drop > 0:
+            del self.times[:drop], self.positions[:drop], self.headings[:drop]
+            self.offset += drop
+
     def sim_time(self) -> float | None:
         """The sim time [s] of the latest sample (None before the first)."""
         return self.times[-1] if self.times else None
@@ -188,11 +221,13 @@ class Monitor:
         """The sample in which every robot had moved from its first sampled pose (by
         more than MOVE_EPS), looking at the samples that came since the last call;
         None until then (:attr:`last_unmoved` is the sample before it)."""
-        while self._move_checked < len(self.times):
+        while self._move_checked < self.count:
             k = self._move_checked
             self._move_checked += 1
-            dp = np.linalg.norm(self.positions[k] - self.positions[0], axis=-1)
-            dh = np.abs(np.angle(np.exp(1j * (self.headings[k] - self.headings[0]))))
+            _, pos, head = self.sample(k)
+            pos0, head0 = self.first
+            dp = np.linalg.norm(pos - pos0, axis=-1)
+            dh = np.abs(np.angle(np.exp(1j * (head - head0))))
             self.moved |= (dp > MOVE_EPS) | (dh > MOVE_EPS)
             if not self.moved.all():
                 self.last_unmoved = k
@@ -227,7 +262,7 @@ class Monitor:
                 stuck = np.flatnonzero(~self.moved).tolist()
                 raise LaunchError(
                     f"not every robot moved within {timeout:.0f} s "
-                    f"({len(self.times)} pose samples; still at rest: {stuck[:20]})"
+                    f"({self.count} pose samples; still at rest: {stuck[:20]})"
                 )
         return None
 
@@ -237,11 +272,11 @@ class Monitor:
         """Spin until a sample at sim time ``t_end`` [s] or ``stopping()``, with ``checks``
         as in :meth:`wait_first_poses`; LaunchError when no new sample has come for
         ``stall_timeout`` wall seconds."""
-        last_count, last_new = len(self.times), time.monotonic()
+        last_count, last_new = self.count, time.monotonic()
         while not stopping():
             self._spin_and_check(checks)
-            if len(self.times) != last_count:
-                last_count, last_new = len(self.times), time.monotonic()
+            if self.count != last_count:
+                last_count, last_new = self.count, time.monotonic()
             elif time.monotonic() - last_new > stall_timeout:
                 raise LaunchError(
                     f"no /swarm/poses for {stall_timeout:.0f} s (sim time {self.clock:.2f} s)"
@@ -253,20 +288,6 @@ class Monitor:
         self.spin_once(0.05)
         for check in checks:
             check()
-
-    def samples(
-        self, start: int = 0, t_end: float | None = None
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(times (T,), positions (T, N, 2), headings (T, N)) from sample ``start`` on,
-        up to sim time ``t_end`` (but at least one)."""
-        times = np.asarray(self.times[start:])
-        pos = np.asarray(self.positions[start:]).reshape(len(times), self.n, 2)
-        head = np.asarray(self.headings[start:]).reshape(len(times), self.n)
-        if t_end is not None and len(times):
-            keep = times <= t_end + TIME_EPS
-            keep[: max(1, int(keep.sum()))] = True
-            times, pos, head = times[keep], pos[keep], head[keep]
-        return times, pos, head
 
     def spin_once(self, timeout: float) -> None:
         """Handle what has arrived, waiting at most ``timeout`` s for it."""
