@@ -57,6 +57,11 @@ from dashboard_node.view import SwarmView
 
 #: Wall seconds a service or parameter call may take before it counts as unanswered.
 CALL_TIMEOUT = 5.0
+#: Wall seconds a call waits for its service to be matched before "nobody offers it":
+#: discovery of a service can lag behind the node's topics by a few seconds on a
+#: loaded machine (1 click in 20 came too early, under CI load), and a click is not
+#: lost for that.
+SERVICE_WAIT = 4.0
 
 
 class DashboardNode(Node):
@@ -104,6 +109,8 @@ class DashboardNode(Node):
         self.view = SwarmView(scenario, label=label)
         self._requests: queue.Queue[tuple[Control, concurrent.futures.Future]] = queue.Queue()
         self._param_clients: dict[str, Any] = {}
+        #: Calls whose service is not matched yet (each returns True once done with).
+        self._waiting: list[Callable[[], bool]] = []
 
         self.create_subscription(PoseArray, names.POSES, self.on_poses, SENSOR, raw=True)
         for topic, name in (
@@ -216,6 +223,7 @@ class DashboardNode(Node):
         return future
 
     def on_requests(self) -> None:
+        self._waiting = [attempt for attempt in self._waiting if not attempt()]
         while True:
             try:
                 control, future = self._requests.get_nowait()
@@ -265,13 +273,23 @@ class DashboardNode(Node):
         future: concurrent.futures.Future,
         answer: Callable[[Any], tuple[bool, str]] = lambda r: (r.success, r.message),
     ) -> None:
-        """Call ``client`` with ``request``; ``answer`` turns its response into the
-        future's (ok, message)."""
-        if not client.service_is_ready():
-            future.set_result((False, f"{client.srv_name}: nobody offers it"))
-            return
-        call = client.call_async(request)
-        call.add_done_callback(lambda done: future.set_result(answer(done.result())))
+        """Call ``client`` with ``request`` once its service is matched (at most
+        SERVICE_WAIT s from now); ``answer`` turns its response into the future's (ok,
+        message)."""
+        deadline = time.monotonic() + SERVICE_WAIT
+
+        def attempt() -> bool:  # True: done with it
+            if not client.service_is_ready():
+                if time.monotonic() < deadline:
+                    return False
+                future.set_result((False, f"{client.srv_name}: nobody offers it"))
+                return True
+            call = client.call_async(request)
+            call.add_done_callback(lambda done: future.set_result(answer(done.result())))
+            return True
+
+        if not attempt():
+            self._waiting.append(attempt)
 
     def _set_everywhere(self, control: SetGain, future: concurrent.futures.Future) -> None:
         """Set a gain on every robot node and the supervisor; the result counts the

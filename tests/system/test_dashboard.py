@@ -257,12 +257,11 @@ def test_off_this_machine_only_with_the_token(spawn, probe, tmp_path):
     try:
         probe.wait(lambda: viewer.sheets, 10.0, "the sheet")
         assert viewer.sheets[0]["n"] == 4
+        # sent once, as soon as the supervisor speaks: the dashboard waits for discovery
+        # to match its parameter service rather than answer "nobody offers it"
         drive = {"type": "drive", "direction": [1, 0], "omega": 0.2}
-        # sent again until discovery has matched the supervisor's parameter service
-        probe.until(
-            lambda: viewer.send(drive),
-            lambda: probe.desired[-1].twist.angular.z == 0.2,
-        )
+        assert viewer.send(drive)["ok"]
+        probe.wait(lambda: probe.desired[-1].twist.angular.z == 0.2, 5.0, "ω = 0.2")
         assert probe.desired[-1].twist.linear.x == 1.0
     finally:
         viewer.close()

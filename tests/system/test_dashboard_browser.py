@@ -78,11 +78,16 @@ def test_the_page_shows_and_steers_the_swarm(spawn, probe, chromium, tmp_path):
     # north on the dial: the command, then the motion
     dial = chromium.find_element(By.ID, "dial")
     ActionChains(chromium).move_to_element_with_offset(dial, 0, -65).click().perform()
-    probe.wait(
-        lambda: probe.desired and probe.desired[-1].twist.linear.y > 0.8,
-        10.0,
-        "/swarm/desired_velocity north",
-    )
+    try:
+        probe.wait(
+            lambda: probe.desired and probe.desired[-1].twist.linear.y > 0.8,
+            10.0,
+            "/swarm/desired_velocity north",
+        )
+    except BaseException:  # what the page said goes into the report
+        chromium.screenshot("not-north")
+        print("page:", browser.page_state(chromium), messages(chromium, "error"))
+        raise
     assert abs(probe.desired[-1].twist.linear.x) < 0.05
     t1 = probe.now
     probe.wait_sim(t1 + 6.0)
