@@ -12,18 +12,28 @@ package; any MCAP tool, ``ros2 bag play`` or Foxglove reads it::
 
 (:func:`read_bag` is ``mcap.reader`` with the ``mcap_ros2`` decoder; the older
 ``mcap_ros2.reader.read_ros2_messages`` works too.) The node that records the
-swarm into a :class:`BagWriter` is :mod:`aes_ros.ros.recorder`.
+swarm into a :class:`Recording` is :mod:`aes_ros.ros.recorder`.
+
+A recording is one or more segments, each a complete MCAP file on its own:
+``run.mcap``, then ``run_1.mcap``, ``run_2.mcap``… (:func:`segment_path`). The next
+segment gets the next number whatever starts it: the recorder splitting at a size or
+a duration (:class:`Split`, like ``ros2 bag record --max-bag-size`` /
+``--max-bag-duration``) or a recorder restarted after a crash
+(:func:`next_segment`). :func:`bag_segments` lists them in order, also when the
+oldest were deleted (``keep``); :func:`read_bags` reads them as one recording.
 """
 
 from __future__ import annotations
 
+import glob
 import os
+import re
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
@@ -75,11 +85,13 @@ def message_definition(type_name: str) -> str:
 class BagWriter:
     """An MCAP file in the ``ros2`` profile taking raw CDR messages (thread-safe)."""
 
-    def __init__(self, path: str | Path) -> None:
+    def __init__(self, path: str | Path, chunk_size: int = 1024 * 1024) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._file = open(self.path, "wb")  # closed in close()
-        self._writer = McapWriter(self._file, compression=CompressionType.ZSTD)
+        self._writer = McapWriter(
+            self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD
+        )
         self._writer.start(profile="ros2", library="aes-swarm recorder (mcap)")
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
@@ -110,8 +122,9 @@ class BagWriter:
         log_time_ns: int | None = None,
         publish_time_ns: int | None = None,
         sequence: int | None = None,
-    ) -> None:
-        """Append one serialized message of a topic added with :meth:`add_topic`.
+    ) -> int:
+        """Append one serialized message of a topic added with :meth:`add_topic`;
+        returns the sequence number it was stored with.
 
         ``log_time_ns``: when it was received (default now); ``publish_time_ns``:
         when it was sent (default the log time); ``sequence``: the publisher's
@@ -121,13 +134,20 @@ class BagWriter:
         stamp = time.time_ns() if log_time_ns is None else log_time_ns
         with self._lock:
             if self.closed:
-                return
+                return 0 if sequence is None else sequence & 0xFFFFFFFF
             channel = self._channels[topic]
             self._sequence[channel] += 1
-            number = self._sequence[channel] if sequence is None else sequence
+            number = (self._sequence[channel] if sequence is None else sequence) & 0xFFFFFFFF
             sent = stamp if publish_time_ns is None else publish_time_ns
-            self._writer.add_message(channel, stamp, bytes(data), sent, number & 0xFFFFFFFF)
+            self._writer.add_message(channel, stamp, bytes(data), sent, number)
             self.counts[topic] += 1
+            return number
+
+    @property
+    def size(self) -> int:
+        """Bytes written to the file so far (finished chunks; the open one is not)."""
+        with self._lock:
+            return self.path.stat().st_size if self.closed else self._file.tell()
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         """A metadata record (MCAP ``Metadata``: a name and string pairs)."""
@@ -183,12 +203,34 @@ def segment_path(path: str | Path, index: int) -> Path:
     return path if index == 0 else path.with_name(f"{path.stem}_{index}{path.suffix}")
 
 
+def segment_index(path: str | Path, segment: str | Path) -> int | None:
+    """The number of ``segment`` in the recording ``path`` (0 for ``path`` itself), or
+    None if it is not one of its segment names."""
+    path, segment = Path(path), Path(segment)
+    if segment.parent != path.parent:
+        return None
+    if segment.name == path.name:
+        return 0
+    pattern = rf"{re.escape(path.stem)}_([1-9][0-9]*){re.escape(path.suffix)}"
+    match = re.fullmatch(pattern, segment.name)
+    return int(match.group(1)) if match else None
+
+
 def bag_segments(path: str | Path) -> list[Path]:
-    """The segments of the recording ``path`` that exist, in order."""
-    out = []
-    while (segment := segment_path(path, len(out))).exists():
-        out.append(segment)
-    return out
+    """The segments of the recording ``path`` that exist, in the order of their numbers
+    (gaps allowed: a recording with ``keep`` has deleted its oldest)."""
+    path = Path(path)
+    numbered = path.parent.glob(f"{glob.escape(path.stem)}_*{glob.escape(path.suffix)}")
+    found = {segment_index(path, p): p for p in [path, *numbered] if p.is_file()}
+    found.pop(None, None)
+    return [found[i] for i in sorted(found)]
+
+
+def next_segment(path: str | Path) -> int:
+    """The number of the next segment of the recording ``path``: one past the highest
+    that exists (0 when none does)."""
+    segments = bag_segments(path)
+    return segment_index(path, segments[-1]) + 1 if segments else 0
 
 
 def read_bags(
@@ -308,3 +350,276 @@ class SequenceGaps:
 
     def total(self) -> int:
         return sum(self.lost.values())
+
+
+# ----------------------------------------------------------------------------- splitting
+
+#: Units of a split size (decimal and binary prefixes), lower case.
+SIZE_UNITS = {
+    "b": 1, "kb": 10**3, "mb": 10**6, "gb": 10**9, "tb": 10**12,
+    "kib": 2**10, "mib": 2**20, "gib": 2**30, "tib": 2**40,
+}  # fmt: skip
+#: Units of a split duration, lower case.
+DURATION_UNITS = {"s": 1.0, "min": 60.0, "h": 3600.0}
+#: The smallest split: below this a segment would be mostly schemas and summary.
+MIN_SPLIT_BYTES = 64 * 2**10
+MIN_SPLIT_SECONDS = 1.0
+#: What a split may be, for error messages.
+SPLIT_FORMS = (
+    "a size (e.g. 500MiB, 1GiB; units B, kB, MB, GB, TB, KiB, MiB, GiB, TiB; at least "
+    "64KiB) or a duration (e.g. 30s, 10min, 2h; units s, min, h; at least 1s)"
+)
+
+
+class Split(NamedTuple):
+    """When a recording goes on in its next segment: once the current one has ``size``
+    bytes on disk, or spans ``seconds`` of log time (wall time) from its first message.
+    Exactly one of the two is set (:func:`parse_split`)."""
+
+    size: int | None = None
+    seconds: float | None = None
+
+
+def parse_split(text: str) -> Split:
+    """A :class:`Split` from ``500MiB``, ``1GiB``, ``2.5GB``, ``30s``, ``10min``, ``2h``…
+    (units :data:`SIZE_UNITS` and :data:`DURATION_UNITS`, any case); ValueError saying
+    what is allowed (:data:`SPLIT_FORMS`) otherwise."""
+    match = re.fullmatch(r"\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*([a-zA-Z]+)\s*", str(text))
+    unit = match.group(2).lower() if match else ""
+    if unit in SIZE_UNITS:
+        size = round(float(match.group(1)) * SIZE_UNITS[unit])
+        if size >= MIN_SPLIT_BYTES:
+            return Split(size=size)
+    elif unit in DURATION_UNITS:
+        seconds = float(match.group(1)) * DURATION_UNITS[unit]
+        if seconds >= MIN_SPLIT_SECONDS:
+            return Split(seconds=seconds)
+    raise ValueError(f"{text!r} is not allowed; need {SPLIT_FORMS}")
+
+
+class Recording:
+    """A recording into MCAP segments, each complete on its own (thread-safe).
+
+    Like :class:`BagWriter` (``add_topic``, ``write``, ``flush``, ``close``,
+    ``counts`` and ``path`` of the open segment), and besides:
+
+    - losses: each message's publisher's sequence number and send time go to
+      :attr:`gaps` (:class:`SequenceGaps`; ``after``: the last numbers of the
+      segments before, :func:`last_sequences`), and every segment gets, when it
+      is closed, its own ``aes_swarm.recording`` metadata (:meth:`summary`: its
+      messages and the losses counted while it was open, per topic);
+    - ``split``: once the open segment reaches the :class:`Split`'s size or
+      duration, the next message goes into the next segment: the open one is
+      closed first (summary, metadata), so every segment but a killed
+      recorder's last is complete. Numbering is continuous across the switch, so
+      it counts no loss there. The next segment starts with the last message of
+      each latched topic (``add_topic(latched=True)``: transient-local, the
+      supervisor's) re-written with its own send time and sequence number and the
+      new segment's start as log time, so that one segment opened alone has them
+      (rosbag2 does not do this); :func:`read_bags` reads them once;
+    - ``keep``: after opening a segment, only the newest ``keep`` segments of the
+      recording stay; older ones are deleted, whichever recorder wrote them;
+    - ``segment``: the first segment's number; ``0`` starts a new recording and
+      deletes the numbered segments of an earlier one at the same path (they would
+      be read as part of this one), a restarted recorder continues with
+      :func:`next_segment`.
+
+    ``say`` gets a line for every switch (None: nothing is said).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        split: Split | None = None,
+        keep: int | None = None,
+        segment: int = 0,
+        after: dict[str, tuple[int, int]] | None = None,
+        say: Callable[[str], None] | None = None,
+    ) -> None:
+        if keep is not None and keep < 1:
+            raise ValueError(f"keep: {keep!r} is not allowed; need an integer >= 1")
+        self.base = Path(path)
+        self.split = split
+        self.keep = keep
+        self.gaps = SequenceGaps(after)
+        self.written: dict[str, int] = {}
+        self.deleted: list[Path] = []
+        self._say = say
+        self._lock = threading.RLock()
+        self._topics: dict[str, tuple[str, bool]] = {}
+        self._sampled: set[str] = set()
+        self._latched: dict[str, tuple[bytes, int, int]] = {}
+        self._chunk = min(1024 * 1024, max(split.size // 8, 4096)) if split and split.size else None
+        if segment == 0:  # a new recording at this path: the earlier one's segments go
+            for old in bag_segments(self.base)[1:]:
+                old.unlink(missing_ok=True)
+        self.first = segment
+        self._open(segment, None)
+
+    # -- the open segment ---------------------------------------------------------------
+
+    @property
+    def path(self) -> Path:
+        """The open segment's file."""
+        return self._bag.path
+
+    @property
+    def index(self) -> int:
+        """The open segment's number."""
+        return self._index
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Messages per topic in the open segment (latched ones carried over included)."""
+        return self._bag.counts
+
+    def _open(self, index: int, start_ns: int | None) -> None:
+        path = segment_path(self.base, index)
+        self._bag = BagWriter(path) if self._chunk is None else BagWriter(path, self._chunk)
+        self._index = index
+        self._start_ns = start_ns
+        self._fresh = True
+        self._lost_before = dict(self.gaps.lost)
+        self.carried = 0
+        for topic, (type_name, _) in self._topics.items():
+            self._bag.add_topic(topic, type_name)
+        for topic, (data, sent, number) in self._latched.items():
+            self._bag.write(topic, data, start_ns, publish_time_ns=sent, sequence=number)
+            self.carried += 1
+        if self.keep is not None:
+            for old in bag_segments(self.base)[: -self.keep]:
+                if old != path:
+                    old.unlink(missing_ok=True)
+                    self.deleted.append(old)
+
+    def _due(self, stamp: int) -> bool:
+        """The open segment is full (:attr:`split`) and has a message of its own."""
+        if self.split is None or self._fresh:
+            return False
+        if self.split.seconds is not None:
+            return stamp - self._start_ns >= self.split.seconds * 1e9
+        return self._bag.size >= self.split.size
+
+    def _finish(self) -> None:
+        """Close the open segment with its metadata."""
+        if not self._bag.closed:
+            self._bag.add_metadata(RECORDING_METADATA, self.summary())
+            self._bag.close()
+
+    def _switch(self, stamp: int) -> None:
+        closed, messages = self._bag.path, sum(self._bag.counts.values())
+        lost = sum(self._segment_lost().values())
+        deleted = len(self.deleted)
+        self._finish()
+        self._open(self._index + 1, stamp)
+        if self._say is not None:
+            gone = ", ".join(p.name for p in self.deleted[deleted:])
+            self._say(
+                f"bag segment {closed.name} closed ({messages} messages, {lost} lost); "
+                f"recording into {self.path.name}" + (f"; deleted {gone}" if gone else "")
+            )
+
+    # -- BagWriter's interface ----------------------------------------------------------
+
+    def add_topic(
+        self, topic: str, type_name: str, *, latched: bool = False, sampled: bool = False
+    ) -> None:
+        """A topic to record; ``latched``: its last message starts every next segment;
+        ``sampled``: recorded on purpose not every message (losses not counted)."""
+        with self._lock:
+            if topic in self._topics:
+                return
+            self._bag.add_topic(topic, type_name)
+            self._topics[topic] = (type_name, latched)
+            if sampled:
+                self._sampled.add(topic)
+                self.gaps.uncountable.add(topic)
+            self.written.setdefault(topic, 0)
+
+    def write(
+        self,
+        topic: str,
+        data: bytes,
+        log_time_ns: int | None = None,
+        publish_time_ns: int | None = None,
+        sequence: int | None = None,
+    ) -> int:
+        """:meth:`BagWriter.write` into the open segment, or the next one when it is full;
+        counts the messages lost before this one (:attr:`gaps`) and returns how many."""
+        stamp = time.time_ns() if log_time_ns is None else log_time_ns
+        sent = stamp if publish_time_ns is None else publish_time_ns
+        with self._lock:
+            if self._bag.closed:
+                return 0
+            if self._due(stamp):
+                self._switch(stamp)
+            if self._start_ns is None:
+                self._start_ns = stamp
+            number = self._bag.write(topic, data, stamp, sent, sequence)
+            self._fresh = False
+            self.written[topic] += 1
+            if self._topics[topic][1]:
+                self._latched[topic] = (bytes(data), sent, number)
+            return self.gaps.seen(topic, sequence, publish_time_ns)
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """A metadata record in the open segment."""
+        with self._lock:
+            self._bag.add_metadata(name, data)
+
+    def flush(self) -> None:
+        """:meth:`BagWriter.flush` of the open segment."""
+        with self._lock:
+            self._bag.flush()
+
+    def close(self) -> None:
+        """Write the open segment's metadata and summary and close it (idempotent)."""
+        with self._lock:
+            self._finish()
+
+    @property
+    def closed(self) -> bool:
+        return self._bag.closed
+
+    # -- what was recorded --------------------------------------------------------------
+
+    def _segment_lost(self) -> dict[str, int]:
+        before = self._lost_before
+        return {t: max(n - before.get(t, 0), 0) for t, n in self.gaps.lost.items()}
+
+    def summary(self) -> dict[str, str]:
+        """The open segment's ``aes_swarm.recording`` metadata: its number, the latched
+        messages it starts with, and per topic the messages in it and the losses counted
+        while it was open (``lost_total``: their sum)."""
+        with self._lock:
+            lost = self._segment_lost()
+            out = {"lost_total": str(sum(lost.values())), "segment": str(self._index)}
+            if self.carried:
+                out["carried_over"] = str(self.carried)
+            for topic, count in sorted(self._bag.counts.items()):
+                if topic in self._sampled:
+                    text = "not counted (sampled)"
+                elif topic in self.gaps.uncountable:
+                    text = "not counted (several publishers)"
+                else:
+                    text = str(lost.get(topic, 0))
+                out[topic] = f"recorded {count}, lost {text}"
+            return out
+
+    def summary_line(self) -> str:
+        """``bag PATH: N messages on T topics, L lost`` over every segment this recording
+        wrote (with the topics that lost any; the segments when there are several)."""
+        with self._lock:
+            total = sum(self.written.values())
+            lost = self.gaps.total()
+            which = ", ".join(f"{t} {n}" for t, n in sorted(self.gaps.lost.items()) if n)
+            where = str(self.path)
+            if self._index != self.first:
+                first = segment_path(self.base, self.first)
+                kept = f", the newest {self.keep} kept" if self.keep is not None else ""
+                count = self._index - self.first + 1
+                where = f"{first} … {self.path.name} ({count} segments{kept})"
+            return f"bag {where}: {total} messages on {len(self._topics)} topics, {lost} lost" + (
+                f" ({which})" if which else ""
+            )

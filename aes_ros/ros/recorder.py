@@ -13,6 +13,14 @@ with SIGKILL leaves a bag without summary that :func:`aes_ros.ros.bag.read_bag`
 still reads up to its last complete chunk (:func:`aes_ros.ros.bag.bag_is_closed`
 tells the two apart).
 
+For runs of hours, ``--split SIZE|DURATION`` (``1GiB``, ``500MiB``, ``10min``,
+``30s``) closes the bag once it has that many bytes on disk or spans that much wall
+time and goes on in the next segment (``run_1.mcap``, ``run_2.mcap``…, the numbering
+a restarted recorder continues, ``--segment``); ``--keep K`` deletes all but the
+newest K segments. Every closed segment is a complete bag with its own counts and
+losses, and starts with the last message of each latched topic, so that it can be
+read alone (:class:`aes_ros.ros.bag.Recording`).
+
 Nothing is lost silently. Each message is stored with its publisher's send time
 and sequence number, so gaps in a topic's numbers are messages that did not reach
 the recorder: counted per topic (:class:`aes_ros.ros.bag.SequenceGaps`), written
@@ -26,6 +34,7 @@ stays readable.
 Run on its own (it stops and closes the bag on Ctrl-C / SIGTERM)::
 
     python -m aes_ros.ros.recorder run.mcap --robots 16
+    python -m aes_ros.ros.recorder run.mcap --robots 16 --split 10min --keep 6
 """
 
 from __future__ import annotations
@@ -35,7 +44,7 @@ import contextlib
 import functools
 import re
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -47,7 +56,7 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import RECORDING_METADATA, BagWriter, SequenceGaps, last_sequences
+from aes_ros.ros.bag import SPLIT_FORMS, Recording, Split, last_sequences, parse_split
 from aes_ros.ros.cdr import decode_stamp
 from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, IMAGES, LATCHED, SENSOR, STREAM_WRITER
@@ -101,15 +110,14 @@ def _subscriber_qos(infos: Iterable) -> QoSProfile:
 
 
 class RecorderNode(Node):
-    """Subscribes (raw) to the recorded topics and writes them to a :class:`BagWriter`.
+    """Subscribes (raw) to the recorded topics and writes them to a :class:`Recording`.
 
-    Parameters (constructor): ``bag`` the writer, ``num_robots`` N (subscribes
-    ``/mona_<i>/cmd_vel`` for i < N at once; others are found by discovery),
-    ``discover`` look for further matching topics once a second, ``after`` the last
-    sequence numbers of the segments before this one (a restarted recorder counts
-    what was lost while none ran), ``images_rate`` [Hz of the frames' stamps]: also
-    record the camera's frames and camera_info, at most this many a second (0: none;
-    their losses are not counted, since frames are skipped on purpose).
+    Parameters (constructor): ``bag`` the recording (its segments, and the losses it
+    counts), ``num_robots`` N (subscribes ``/mona_<i>/cmd_vel`` for i < N at once;
+    others are found by discovery), ``discover`` look for further matching topics
+    once a second, ``images_rate`` [Hz of the frames' stamps]: also record the
+    camera's frames and camera_info, at most this many a second (0: none; their
+    losses are not counted, since frames are skipped on purpose).
 
     Spin it on a ``SingleThreadedExecutor``: its callbacks take the message info
     (send time, sequence number), which rclpy's EventsExecutor does not pass.
@@ -117,16 +125,14 @@ class RecorderNode(Node):
 
     def __init__(
         self,
-        bag: BagWriter,
+        bag: Recording,
         num_robots: int = 0,
         discover: bool = True,
-        after: dict[str, tuple[int, int]] | None = None,
         images_rate: float = 0.0,
         **kwargs: Any,
     ) -> None:
         super().__init__(names.RECORDER_NODE, **kwargs)
         self.bag = bag
-        self.gaps = SequenceGaps(after)
         self._subs: dict[str, object] = {}
         self._heard: set[str] = set()
         self._progress = self.create_publisher(Clock, names.RECORDER_PROGRESS, LATCHED)
@@ -135,8 +141,7 @@ class RecorderNode(Node):
         self._next_image: dict[str, int] = {}
         if images_rate > 0:
             for topic, (type_name, qos) in CAMERA_TOPICS.items():
-                self._subscribe(topic, type_name, qos)
-                self.gaps.uncountable.add(topic)
+                self._subscribe(topic, type_name, qos, sampled=True)
         for topic, (type_name, qos) in KNOWN_TOPICS.items():
             self._subscribe(topic, type_name, _with_depth(qos))
         for i in range(num_robots):
@@ -151,16 +156,21 @@ class RecorderNode(Node):
         ]
         self._match_timer = self.create_timer(0.1, self.on_check_matched) if num_robots else None
 
-    def _subscribe(self, topic: str, type_name: str, qos: QoSProfile) -> None:
+    def _subscribe(
+        self, topic: str, type_name: str, qos: QoSProfile, sampled: bool = False
+    ) -> None:
         pkg, _, name = type_name.partition("/msg/")
         msg_type = getattr(__import__(f"{pkg}.msg", fromlist=[name]), name)
-        self.bag.add_topic(topic, type_name)
+        # A latched topic's last message starts every segment of a split recording.
+        latched = qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+        self.bag.add_topic(topic, type_name, latched=latched, sampled=sampled)
         # Two arguments: rclpy then passes the message info too.
         callback = functools.partial(self.on_message, topic)
         self._subs[topic] = self.create_subscription(msg_type, topic, callback, qos, raw=True)
 
     def on_message(self, topic: str, data: bytes, info: dict[str, Any] | None) -> None:
-        """Write one message; count the messages before it that never arrived."""
+        """Write one message (the recording counts the messages before it that never
+        arrived, and goes on in its next segment when the open one is full)."""
         if topic in CAMERA_TOPICS and not self._image_due(topic, data):
             return
         sequence = info.get("publication_sequence_number") if info else None
@@ -169,7 +179,6 @@ class RecorderNode(Node):
             self.bag.write(topic, data, publish_time_ns=sent, sequence=sequence)
         except OSError as exc:
             raise CannotWriteError(f"cannot write {self.bag.path}: {exc.strerror or exc}") from None
-        self.gaps.seen(topic, sequence, sent)
         if topic == names.POSES:
             with contextlib.suppress(BadMessageError):
                 stamp = self._progress_msg.clock
@@ -232,7 +241,7 @@ class RecorderNode(Node):
         topics with several publishers, whose losses cannot be counted."""
         for topic, sub in self._subs.items():
             if sub is not None:
-                self.gaps.publishers(topic, sub.get_publisher_count())
+                self.bag.gaps.publishers(topic, sub.get_publisher_count())
         if not discover:
             return
         for topic, types in self.get_topic_names_and_types():
@@ -246,29 +255,6 @@ class RecorderNode(Node):
             except (ImportError, AttributeError, FileNotFoundError) as exc:
                 self.get_logger().warning(f"not recording {topic}: {exc}")
                 self._subs[topic] = None
-
-    def summary(self) -> dict[str, str]:
-        """Recorded and lost messages per topic (the bag's recording metadata)."""
-        out = {"lost_total": str(self.gaps.total())}
-        for topic, count in sorted(self.bag.counts.items()):
-            if topic in self.gaps.uncountable:
-                lost = "not counted (several publishers)"
-            else:
-                lost = str(self.gaps.lost.get(topic, 0))
-            if topic in CAMERA_TOPICS:
-                lost = "not counted (sampled)"
-            out[topic] = f"recorded {count}, lost {lost}"
-        return out
-
-    def summary_line(self) -> str:
-        """``N messages on T topics, L lost`` (with the topics that lost any)."""
-        total = sum(self.bag.counts.values())
-        lost = self.gaps.total()
-        which = ", ".join(f"{t} {n}" for t, n in sorted(self.gaps.lost.items()) if n)
-        return (
-            f"bag {self.bag.path}: {total} messages on {len(self.bag.counts)} topics, "
-            f"{lost} lost" + (f" ({which})" if which else "")
-        )
 
 
 def say(text: str) -> None:
@@ -291,8 +277,28 @@ def _with_depth(qos: QoSProfile) -> QoSProfile:
     )
 
 
+def _split(text: str) -> Split:
+    """``--split``: :func:`aes_ros.ros.bag.parse_split`, its error argparse's."""
+    try:
+        return parse_split(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _count(minimum: int) -> Callable[[str], int]:
+    """An argparse ``type``: an integer >= ``minimum``."""
+
+    def parse(text: str) -> int:
+        if not text.strip().isdigit() or int(text) < minimum:
+            raise argparse.ArgumentTypeError(f"{text!r}: need an integer >= {minimum}")
+        return int(text)
+
+    return parse
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``python -m aes_ros.ros.recorder OUT.mcap [--robots N] [--ros-args ...]``.
+    """``python -m aes_ros.ros.recorder OUT.mcap [--robots N] [--split SIZE|DURATION]
+    [--keep K] [--ros-args ...]``.
 
     Exit code 0 after SIGINT/SIGTERM (bag closed), 3 when the bag cannot be written.
     """
@@ -301,7 +307,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m aes_ros.ros.recorder", description=__doc__.splitlines()[0]
     )
-    parser.add_argument("output", type=Path, help="the MCAP file to write")
+    parser.add_argument(
+        "output", type=Path,
+        help="the MCAP file to write (its first segment; further ones run_1.mcap, …)",
+    )  # fmt: skip
     parser.add_argument("--robots", type=int, default=0, help="subscribe cmd_vel of N robots")
     parser.add_argument(
         "--images", type=float, default=0.0, metavar="RATE",
@@ -311,6 +320,20 @@ def main(argv: list[str] | None = None) -> int:
         "--after", type=Path, nargs="*", default=[],
         help="the earlier segments of this recording: count what was lost between them",
     )  # fmt: skip
+    parser.add_argument(
+        "--split", type=_split, default=None, metavar="SIZE|DURATION",
+        help=f"go on in the next segment once a segment reaches this: {SPLIT_FORMS} "
+        "(default: one segment)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--keep", type=_count(1), default=None, metavar="K",
+        help="keep only the newest K segments (K >= 1), deleting older ones (default: all)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--segment", type=_count(0), default=0, metavar="I",
+        help="start with segment I of the recording OUTPUT (a restarted recorder: the "
+        "next number; default 0: a new recording, replacing an earlier one's segments)",
+    )  # fmt: skip
     args = parser.parse_args(argv[:cut])
     # SIGINT/SIGTERM end spin(); what the readers still hold is written, then the
     # bag is closed.
@@ -318,16 +341,22 @@ def main(argv: list[str] | None = None) -> int:
     node = None
     code = 0
     try:
-        bag = BagWriter(args.output)
+        after = last_sequences(args.after)
+        bag = Recording(
+            args.output,
+            split=args.split,
+            keep=args.keep,
+            segment=args.segment,
+            after=after,
+            say=say,
+        )
     except OSError as exc:
         say(f"recording stopped: cannot write {args.output}: {exc.strerror or exc}")
         rclpy.try_shutdown()
         return names.RECORDER_CANNOT_WRITE
     try:
-        node = RecorderNode(
-            bag, args.robots, after=last_sequences(args.after), images_rate=args.images
-        )
-        say(f"{names.RECORDER_STARTED} {args.output}")
+        node = RecorderNode(bag, args.robots, images_rate=args.images)
+        say(f"{names.RECORDER_STARTED} {bag.path}")
         spin([node], SingleThreadedExecutor())
         drained = node.take_remaining()
         say(f"stopped; {drained} messages taken from the queues after the stop")
@@ -338,11 +367,9 @@ def main(argv: list[str] | None = None) -> int:
         pass
     finally:
         with contextlib.suppress(OSError):
-            if node is not None:
-                bag.add_metadata(RECORDING_METADATA, node.summary())
-            bag.close()
+            bag.close()  # with the last segment's metadata
         if node is not None:
-            say(node.summary_line())
+            say(bag.summary_line())
             node.destroy_node()
         rclpy.try_shutdown()
     return code

@@ -32,7 +32,7 @@ from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import BagWriter, bag_is_closed, read_bag, recording_summary
+from aes_ros.ros.bag import Recording, bag_is_closed, read_bag, recording_summary
 from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.interface import robot_topic
 from aes_ros.ros.qos import COMMAND_KEPT, LATCHED
@@ -194,7 +194,7 @@ def test_recorder_writes_what_its_queues_hold_when_it_stops(probe, tmp_path) -> 
     """Messages acknowledged to a robot but not yet taken by the recorder when it is
     stopped (a busy recorder) still go into the bag, in order: the recorder here is
     never spun, so everything it writes comes from ``take_remaining``."""
-    bag = BagWriter(tmp_path / "drained.mcap")
+    bag = Recording(tmp_path / "drained.mcap")
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=SignalHandlerOptions.NO)
     cmd_vel = robot_topic(0, names.CMD_VEL)

@@ -1,0 +1,208 @@
+"""A recording split into segments (``--split``, ``--keep``): every segment a complete
+MCAP that other readers open alone, with its own counts and losses and the latched
+topics' last messages (no DDS)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.serialization import serialize_message
+from std_msgs.msg import Float64
+
+from aes_ros.ros.bag import (
+    Recording,
+    Split,
+    bag_is_closed,
+    bag_segments,
+    last_sequences,
+    next_segment,
+    parse_split,
+    read_bag,
+    read_bags,
+    recording_summary,
+    segment_path,
+)
+
+STREAM = "/swarm/alignment"  # a stream, one message every STEP
+LATCHED = "/swarm/enabled"  # a latched topic, written once at the start
+STEP = 500_000_000  # [ns]
+T0 = 1_700_000_000 * 10**9  # wall time [ns] of the first message
+
+
+def float64(value: float) -> bytes:
+    return serialize_message(Float64(data=value))
+
+
+def start(path: Path, at: int = T0, **options) -> Recording:
+    """A recording of STREAM and LATCHED, LATCHED's only message (-1, number 1, sent at
+    T0) received at ``at``."""
+    rec = Recording(path, **options)
+    rec.add_topic(STREAM, "std_msgs/msg/Float64")
+    rec.add_topic(LATCHED, "std_msgs/msg/Float64", latched=True)
+    rec.write(LATCHED, float64(-1.0), at, T0, sequence=1)
+    return rec
+
+
+def write_stream(rec: Recording, numbers, flush_every: int = 0) -> None:
+    """STREAM message k (value k, sequence number k + 1) at T0 + k STEP; a flush every
+    ``flush_every`` messages, like the recorder's once a second."""
+    for i, k in enumerate(numbers):
+        t = T0 + k * STEP
+        rec.write(STREAM, float64(float(k)), t, t, sequence=k + 1)
+        if flush_every and i % flush_every == flush_every - 1:
+            rec.flush()
+
+
+def mcap_counts(path: Path) -> dict[str, int]:
+    """Messages per topic by the mcap library's own reader, from the summary."""
+    with open(path, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    counts = summary.statistics.channel_message_counts
+    return {summary.channels[c].topic: n for c, n in counts.items()}
+
+
+def stream_values(path: Path) -> list[float]:
+    """STREAM's values in one segment, read by the mcap library with the mcap_ros2
+    decoder alone (not the project's reader)."""
+    with open(path, "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        return [msg.data for *_, msg in reader.iter_decoded_messages(topics=[STREAM])]
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+@pytest.mark.parametrize(
+    ("text", "split"),
+    [
+        ("1GiB", Split(size=2**30)),
+        ("500MiB", Split(size=500 * 2**20)),
+        ("2.5GB", Split(size=2_500_000_000)),
+        ("64KiB", Split(size=65536)),
+        ("100 kb", Split(size=100_000)),
+        ("30s", Split(seconds=30.0)),
+        ("10min", Split(seconds=600.0)),
+        ("0.5h", Split(seconds=1800.0)),
+        ("1S", Split(seconds=1.0)),
+    ],
+)
+def test_split_sizes_and_durations_parse(text: str, split: Split) -> None:
+    assert parse_split(text) == split
+
+
+@pytest.mark.parametrize(
+    "text", ["", "10", "10x", "10m", "0s", "0.5s", "1KiB", "-1s", "nan s", "1e3s", "inf", "s"]
+)
+def test_bad_splits_say_what_is_allowed(text: str) -> None:
+    with pytest.raises(ValueError, match=r"500MiB, 1GiB.*30s, 10min"):
+        parse_split(text)
+
+
+# ----------------------------------------------------------------------------- rotation
+
+
+def test_split_by_time_gives_complete_segments_each_readable_alone(tmp_path: Path) -> None:
+    """35 s of messages, a segment per 10 s of log time: four complete bags, each with
+    its messages, its counts and the latched message; together the recording once."""
+    rec = start(tmp_path / "run.mcap", split=Split(seconds=10.0))
+    write_stream(rec, range(70))
+    rec.close()
+    segments = bag_segments(tmp_path / "run.mcap")
+    assert segments == [segment_path(tmp_path / "run.mcap", i) for i in range(4)]
+    for i, path in enumerate(segments):
+        assert bag_is_closed(path)
+        values = stream_values(path)
+        assert values == [float(k) for k in range(20 * i, min(20 * i + 20, 70))]
+        counts = mcap_counts(path)
+        assert counts == {STREAM: len(values), LATCHED: 1}
+        meta = recording_summary(path)
+        assert meta["segment"] == str(i) and meta["lost_total"] == "0"
+        assert meta[STREAM] == f"recorded {len(values)}, lost 0"
+        assert meta.get("carried_over") == (str(1) if i else None)
+        # the latched message starts every segment: its own send time and number, the
+        # segment's start as log time
+        with open(path, "rb") as fh:
+            first = next(make_reader(fh).iter_messages(log_time_order=True))
+        assert first[1].topic == LATCHED
+        assert (first[2].publish_time, first[2].sequence) == (T0, 1)
+        assert first[2].log_time == (T0 if i == 0 else T0 + 20 * i * STEP)
+    whole = [(topic, msg.data) for topic, _, msg in read_bags(segments)]
+    assert whole == [(LATCHED, -1.0)] + [(STREAM, float(k)) for k in range(70)]
+    assert rec.summary_line() == (
+        f"bag {tmp_path / 'run.mcap'} … run_3.mcap (4 segments): 71 messages on 2 topics, 0 lost"
+    )
+
+
+def test_split_by_size_keeps_segments_near_the_size(tmp_path: Path) -> None:
+    """Incompressible messages, 20 kB a segment: the recording goes on in the next one
+    once a segment's finished chunks reach the size; no message lost or doubled."""
+    size = 20_000
+    rec = Recording(tmp_path / "run.mcap", split=Split(size=size))
+    rec.add_topic(STREAM, "std_msgs/msg/Float64")
+    values = np.random.default_rng(0).random(3000)
+    for k, value in enumerate(values):
+        t = T0 + k * STEP
+        rec.write(STREAM, float64(float(value)), t, t, sequence=k + 1)
+    rec.close()
+    segments = bag_segments(tmp_path / "run.mcap")
+    assert len(segments) >= 3
+    for path in segments[:-1]:  # a full segment: past the size by less than a chunk
+        assert size <= path.stat().st_size < size + 8192, path.stat().st_size
+    assert all(bag_is_closed(p) for p in segments)
+    assert sum(mcap_counts(p)[STREAM] for p in segments) == len(values)
+    read = [msg.data for _, _, msg in read_bags(segments)]
+    assert np.array_equal(read, values)
+
+
+def test_keep_deletes_the_oldest_segments(tmp_path: Path) -> None:
+    """``keep=2``: the two newest segments stay, the first of them opens alone with the
+    latched message; ``bag_segments`` lists what is left, in order."""
+    rec = start(tmp_path / "run.mcap", split=Split(seconds=10.0), keep=2)
+    write_stream(rec, range(70))
+    rec.close()
+    kept = bag_segments(tmp_path / "run.mcap")
+    assert kept == [tmp_path / "run_2.mcap", tmp_path / "run_3.mcap"]
+    assert rec.deleted == [tmp_path / "run.mcap", tmp_path / "run_1.mcap"]
+    assert [t for t, _, _ in read_bag(kept[0])][:2] == [LATCHED, STREAM]
+    assert [msg.data for _, _, msg in read_bags(kept, [STREAM])] == list(range(40, 70))
+    assert "the newest 2 kept" in rec.summary_line()
+
+
+def test_losses_are_counted_per_segment_and_none_at_a_switch(tmp_path: Path) -> None:
+    """Numbers run on across a switch (nothing lost there); 3 messages missing in the
+    second segment and 1 right after the third opened count in those segments only."""
+    rec = start(tmp_path / "run.mcap", split=Split(seconds=10.0))
+    numbers = [k for k in range(60) if k not in (25, 26, 27, 41)]
+    write_stream(rec, numbers)
+    rec.close()
+    lost = [recording_summary(p)[STREAM] for p in bag_segments(tmp_path / "run.mcap")]
+    assert lost == ["recorded 20, lost 0", "recorded 17, lost 3", "recorded 19, lost 1"]
+    assert rec.summary_line().endswith(f", 4 lost ({STREAM} 4)")
+
+
+def test_a_restarted_recorder_continues_the_numbering(tmp_path: Path) -> None:
+    """A recorder killed in its third segment, restarted into the next number with the
+    last sequence numbers on disk: one recording, in order, each message once, the
+    resent history not counted twice; a new recording at the path replaces them all."""
+    base = tmp_path / "run.mcap"
+    rec = start(base, split=Split(seconds=10.0))
+    write_stream(rec, range(50))
+    rec.flush()  # then killed: segment 2 has no summary
+    assert next_segment(base) == 3 and not bag_is_closed(segment_path(base, 2))
+    after = last_sequences(bag_segments(base))
+    # resent history: the latched message, and the stream's last three (47..49)
+    again = start(base, T0 + 47 * STEP, split=Split(seconds=10.0), segment=3, after=after)
+    write_stream(again, range(47, 90))
+    again.close()
+    segments = bag_segments(base)
+    assert segments == [segment_path(base, i) for i in range(6)]
+    stream = [msg.data for _, _, msg in read_bags(segments, [STREAM])]
+    assert stream == list(range(90))
+    assert {recording_summary(p)["lost_total"] for p in segments[3:]} == {"0"}
+    fresh = Recording(base)
+    fresh.close()
+    assert bag_segments(base) == [base]
