@@ -5,6 +5,8 @@ Examples::
     aes-swarm launch --setup combined --robots 100 --duration 30 --out out/ros \
         --record out/ros/run.mcap
     aes-swarm launch --setup linear --robots 16 --lockstep --real-time-factor 0 --out out/lin
+    aes-swarm launch --setup combined --robots 100 --duration 0 --out out/long \
+        --record out/long/run.mcap --bag-split 10min --bag-keep 12
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
@@ -20,6 +22,7 @@ from pathlib import Path
 
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
 
@@ -53,6 +56,19 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--record-images", type=number_type(float, 0.0, 240.0), default=0.0, metavar="RATE",
         help="with --record and --tracking camera: also the camera's frames, at most RATE a "
         "second (default 0: none; a 1280x960 frame is 1.2 MB)",
+    )  # fmt: skip
+    p.add_argument(
+        "--bag-split", type=_bag_split, default=None, metavar="SIZE|DURATION",
+        help="with --record: once a bag segment reaches this size on disk or spans this "
+        "wall time, close it (complete, with its own counts and losses) and go on in the "
+        "next, run_1.mcap, run_2.mcap, ... (the numbering a restarted recorder continues); "
+        "each starts with the last message of every latched topic. A size (500MiB, 1GiB; "
+        "at least 64KiB) or a duration (30s, 10min, 2h; at least 1s); default: one segment",
+    )  # fmt: skip
+    p.add_argument(
+        "--bag-keep", type=number_type(int, 1), default=None, metavar="K",
+        help="with --bag-split: keep only the newest K segments (K >= 1), deleting older "
+        "ones as new ones start (default: all)",
     )  # fmt: skip
     p.add_argument("--out", type=Path, default=None, help="output directory (plots, metrics, logs)")
     p.add_argument("--gui", action="store_true", help="show the pybullet GUI")
@@ -108,6 +124,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
 
 
+def _bag_split(text: str) -> str:
+    """``--bag-split``: a size or a duration (:func:`aes_ros.ros.bag.parse_split`)."""
+    try:
+        parse_split(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: need {SPLIT_FORMS}") from None
+    return text.strip()
+
+
 def _pixels(text: str) -> tuple[int, int]:
     """``WxH`` in pixels, each 16 … 8192."""
     try:
@@ -146,6 +171,8 @@ def run(args: argparse.Namespace) -> int:
             camera_rate=args.camera_rate,
             world=args.world,
             record_images=args.record_images,
+            bag_split=args.bag_split,
+            bag_keep=args.bag_keep,
             camera_source=args.camera_source,
             calibration=args.calibration,
         )
@@ -162,8 +189,9 @@ def run(args: argparse.Namespace) -> int:
     else:
         span = result.t_last - result.t_go if result.samples else 0.0
         print(f"launch: ran {span:.1f} s of sim time in {result.wall_time:.1f} s wall")
-    if args.record is not None:
-        print(f"bag: {args.record}")
+    if args.record is not None:  # its segments, when it was split or restarted
+        segments = bag_segments(args.record) or [args.record]
+        print(f"bag: {', '.join(map(str, segments))}")
     if result.failure is not None:
         print(f"aes-swarm launch: error: {result.failure}", file=sys.stderr)
         return 1

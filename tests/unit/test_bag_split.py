@@ -1,6 +1,7 @@
 """A recording split into segments (``--split``, ``--keep``): every segment a complete
 MCAP that other readers open alone, with its own counts and losses and the latched
-topics' last messages (no DDS)."""
+topics' last messages; the options through ``aes-swarm launch`` (no DDS: the real
+recorder splits in tests/system/test_recording.py)."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 from std_msgs.msg import Float64
 
+from aes_ros import scenario
+from aes_ros.cli import main as aes_swarm
 from aes_ros.ros.bag import (
     Recording,
     Split,
@@ -26,6 +29,9 @@ from aes_ros.ros.bag import (
     recording_summary,
     segment_path,
 )
+from aes_ros.ros.launch.plan import LaunchConfig, start_order
+from aes_ros.ros.launch.preflight import expected_bytes
+from aes_ros.ros.launch.recovery import RestartCommands
 
 STREAM = "/swarm/alignment"  # a stream, one message every STEP
 LATCHED = "/swarm/enabled"  # a latched topic, written once at the start
@@ -206,3 +212,68 @@ def test_a_restarted_recorder_continues_the_numbering(tmp_path: Path) -> None:
     fresh = Recording(base)
     fresh.close()
     assert bag_segments(base) == [base]
+
+
+# ----------------------------------------------------------------------------- launch
+
+
+def test_launch_passes_split_and_keep_to_the_recorder_and_its_restarts(tmp_path: Path) -> None:
+    sc = scenario.load("linear").with_robots(4)
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml", tmp_path / "arena.yaml")
+    bag = tmp_path / "run.mcap"
+    cfg = LaunchConfig(sc, record=bag, bag_split="30s", bag_keep=2, layout="single")
+    order = start_order(cfg, *files)
+    argv = order.recorder.argv
+    assert argv[argv.index("--split") + 1] == "30s" and argv[argv.index("--keep") + 1] == "2"
+    for i in (0, 1, 2):  # a recorder that split twice, then died
+        segment_path(bag, i).write_bytes(b"")
+    restart = RestartCommands(order.by_name, None, tmp_path / "w.npz", bag, 4)
+    again = restart("recorder")
+    assert again[: len(argv)] == argv
+    assert again[len(argv) :] == [
+        "--segment", "3", "--after", *(str(segment_path(bag, i)) for i in range(3))
+    ]  # fmt: skip
+    bounded = expected_bytes(LaunchConfig(sc, record=bag, bag_split="64KiB", bag_keep=2))
+    assert bounded["bag"] == 3 * 65536
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"bag_split": "10x"}, "bag_split: '10x' is not allowed; need a size"),
+        ({"bag_split": "10s", "record": None}, "bag_split: '10s' is not allowed; only with"),
+        ({"bag_split": "10s", "bag_keep": 0}, "bag_keep: 0 is not allowed; need an integer"),
+        ({"bag_keep": 2}, "bag_keep: 2 is not allowed; only with --bag-split"),
+    ],
+)
+def test_launch_config_refuses_bad_split_options(tmp_path: Path, options, message: str) -> None:
+    sc = scenario.load("linear").with_robots(4)
+    with pytest.raises(ValueError, match=message):
+        LaunchConfig(sc, **{"record": tmp_path / "run.mcap", **options})
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--bag-split", "10x"], "argument --bag-split: '10x': need a size (e.g. 500MiB"),
+        (["--bag-split", "0.1s"], "argument --bag-split: '0.1s': need a size"),
+        (["--bag-keep", "0"], "argument --bag-keep: need an integer >= 1"),
+        (["--bag-split", "10s"], "bag_split: '10s' is not allowed; only with --record"),
+    ],
+)
+def test_launch_rejects_bad_split_options_naming_them(capsys, args, expected: str) -> None:
+    assert aes_swarm(["launch", *args]) == 2
+    assert expected in capsys.readouterr().err
+
+
+def test_recorder_rejects_bad_split_options(capsys) -> None:
+    from aes_ros.ros.recorder import main
+
+    for args, expected in [
+        (["--split", "1TB/s"], "argument --split: '1TB/s' is not allowed; need a size"),
+        (["--keep", "0"], "argument --keep: '0': need an integer >= 1"),
+    ]:
+        with pytest.raises(SystemExit) as exit_:
+            main(["run.mcap", *args])
+        assert exit_.value.code == 2
+        assert expected in capsys.readouterr().err

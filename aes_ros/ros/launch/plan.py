@@ -26,6 +26,7 @@ import yaml
 
 from aes_ros.model import GAIN_FIELDS
 from aes_ros.ros import interface as names
+from aes_ros.ros.bag import SPLIT_FORMS, parse_split
 from aes_ros.ros.parameters import LIMIT_NAMES
 from aes_ros.scenario import Scenario
 
@@ -72,6 +73,11 @@ class LaunchConfig:
         ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera.
     record_images : with ``record``, also the camera's frames, at most this many a
         second (0: none; a 1280 × 960 frame is 1.2 MB).
+    bag_split : with ``record``, go on in the next bag segment (``run_1.mcap``, …)
+        once a segment has this size on disk or spans this wall time: ``1GiB``,
+        ``500MiB``, ``10min``, ``30s`` (:func:`aes_ros.ros.bag.parse_split`); None: one
+        segment (more only if the recorder is restarted).
+    bag_keep : with ``bag_split``, keep only the newest K >= 1 segments (None: all).
     world : ``pybullet`` (the bridge), or ``none``: a real arena, no bridge and no
         simulated camera, every node on wall-clock time, the tracker reading
         ``camera_source`` (a device or a video file) with ``calibration`` (a file of
@@ -106,6 +112,8 @@ class LaunchConfig:
     camera_rate: float = 20.0
     world: str = "pybullet"
     record_images: float = 0.0
+    bag_split: str | None = None
+    bag_keep: int | None = None
     camera_source: str | None = None
     calibration: Path | None = None
     bridge_params: dict[str, Any] = field(default_factory=dict)
@@ -155,6 +163,22 @@ class LaunchConfig:
                 math.isfinite(self.real_time_factor) and self.real_time_factor >= 0,
                 "need a number >= 0",
             ),
+            (
+                "bag_split",
+                self.bag_split is None or _is_split(self.bag_split),
+                f"need {SPLIT_FORMS}",
+            ),
+            ("bag_split", self.bag_split is None or self.record is not None, "only with --record"),
+            (
+                "bag_keep",
+                self.bag_keep is None or (isinstance(self.bag_keep, int) and self.bag_keep >= 1),
+                "need an integer >= 1",
+            ),
+            (
+                "bag_keep",
+                self.bag_keep is None or self.bag_split is not None,
+                "only with --bag-split (else there is one segment)",
+            ),
         ]
         for name, ok, hint in checks:
             if not ok:
@@ -193,6 +217,14 @@ class LaunchConfig:
     def robot_seed_value(self) -> int:
         """The robots' ``seed`` parameter (each robot combines it with its robot_id)."""
         return int(self.seed if self.robot_seed is None else self.robot_seed)
+
+
+def _is_split(text: str) -> bool:
+    try:
+        parse_split(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _one_of(choices: tuple[str, ...]) -> str:
@@ -550,17 +582,22 @@ def recorder_command(
     bag: Path,
     num_robots: int,
     python: str,
-    after: list[Path] | None = None,
     images_rate: float = 0.0,
+    split: str | None = None,
+    keep: int | None = None,
 ) -> ProcessSpec:
-    """The MCAP recorder (:mod:`aes_ros.ros.recorder`) run by ``python``; ``after``: the
-    earlier segments of the recording (a restarted recorder); ``images_rate``: the
-    camera's frames a second it also records (0: none)."""
+    """The MCAP recorder (:mod:`aes_ros.ros.recorder`) of the recording ``bag`` run by
+    ``python``; ``images_rate``: the camera's frames a second it also records (0: none);
+    ``split``, ``keep``: its ``--split`` and ``--keep`` (None: one segment, all kept). A
+    restarted recorder adds ``--segment`` and ``--after``, the earlier segments
+    (:class:`~aes_ros.ros.launch.recovery.RestartCommands`)."""
     argv = [python, "-m", "aes_ros.ros.recorder", str(bag), "--robots", str(num_robots)]
     if images_rate > 0:
         argv += ["--images", repr(float(images_rate))]
-    if after:
-        argv += ["--after", *map(str, after)]
+    if split is not None:
+        argv += ["--split", split]
+    if keep is not None:
+        argv += ["--keep", str(int(keep))]
     return ProcessSpec("recorder", argv)
 
 
@@ -605,7 +642,12 @@ def start_order(
     if config.record is not None:
         bag = Path(config.record).resolve()
         recorder = recorder_command(
-            bag, config.num_robots, sys.executable, images_rate=config.record_images
+            bag,
+            config.num_robots,
+            sys.executable,
+            images_rate=config.record_images,
+            split=config.bag_split,
+            keep=config.bag_keep,
         )
     if config.dashboard is not None:
         dashboard = dashboard_command(config, scenario_file)

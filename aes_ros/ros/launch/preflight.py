@@ -8,6 +8,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from aes_ros.ros.bag import parse_split
 from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
 
 #: Bytes per sample per robot of the trajectory: 3 float64 in the parts, again in
@@ -36,12 +37,22 @@ def check_writable(directory: Path, what: str) -> None:
 
 def expected_bytes(config: LaunchConfig) -> dict[str, int]:
     """Rough upper bounds of the bytes a launch writes: ``outputs`` (into out_dir) and
-    ``bag`` (the recording), for its duration (10 minutes when open-ended)."""
+    ``bag`` (the recording), for its duration (10 minutes when open-ended); a recording
+    that keeps K segments (``bag_keep``) needs room for K + 1 of them at most."""
     seconds = config.run_time if config.run_time > 0 else OPEN_ENDED_S
     steps = seconds / float(config.scenario.dt)
     n = config.num_robots
     outputs = steps * (n * TRAJECTORY_BYTES + METRICS_ROW_BYTES) + 2_000_000  # + plots, logs
-    bag = steps * (n * BAG_BYTES_PER_ROBOT + BAG_BYTES_PER_STEP) if config.record else 0
+    per_step = n * BAG_BYTES_PER_ROBOT + BAG_BYTES_PER_STEP
+    bag = steps * per_step if config.record else 0
+    split = parse_split(config.bag_split) if config.record and config.bag_split else None
+    if split is not None and config.bag_keep:
+        # a segment of wall seconds spans real_time_factor times as much sim time
+        # (unknown at 0, as fast as possible)
+        sim_seconds = (split.seconds or 0.0) * config.real_time_factor
+        segment = split.size or sim_seconds / float(config.scenario.dt) * per_step
+        if segment:
+            bag = min(bag, (config.bag_keep + 1) * segment)
     return {"outputs": int(outputs), "bag": int(bag)}
 
 

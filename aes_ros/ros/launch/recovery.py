@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import segment_path
+from aes_ros.ros.bag import bag_segments, next_segment
 from aes_ros.ros.launch.plan import ProcessSpec, recorder_command, ros_value
 from aes_ros.world_state import WorldState
 
@@ -71,14 +71,18 @@ class RestartCommands:
 
     - the bridge: from the last world state the monitor sampled (``resume_from``,
       written to ``state_file``), so the swarm carries on where it was;
-    - the recorder: into the next bag segment (``run_1.mcap``, …), counting what
-      was lost since the earlier ones;
+    - the recorder: as it was first started (its ``--split``, ``--keep`` and
+      ``--images`` too) into the next bag segment: one past the highest on disk,
+      which a splitting recorder may have numbered (``run_1.mcap``, …), counting
+      what was lost since the earlier ones;
     - the supervisor: with the last swarm command it published (a runtime
       ``/swarm/cmd`` or enable survives its restart);
     - any other process: as it was started.
 
     specs : each process's first command line. monitor : the launcher's
     :class:`~aes_ros.ros.launch.monitor.Monitor` (its samples, the latched command).
+    record, images_rate : the recording and its camera frames a second, for a recorder
+    not in ``specs``. segments : the number of the last segment a restart started.
     """
 
     specs: dict[str, ProcessSpec]
@@ -92,16 +96,14 @@ class RestartCommands:
     def __call__(self, name: str) -> list[str]:
         if name == "recorder":
             record = Path(self.record).resolve()
-            earlier = [segment_path(record, k) for k in range(self.segments + 1)]
-            self.segments += 1
-            spec = recorder_command(
-                segment_path(record, self.segments),
-                self.num_robots,
-                sys.executable,
-                [p for p in earlier if p.exists()],
-                self.images_rate,
+            earlier = bag_segments(record)
+            self.segments = max(self.segments + 1, next_segment(record))
+            first = self.specs.get("recorder") or recorder_command(
+                record, self.num_robots, sys.executable, images_rate=self.images_rate
             )
-            return spec.argv
+            # the first command line has neither --segment nor --after
+            after = ["--after", *map(str, earlier)] if earlier else []
+            return [*first.argv, "--segment", str(self.segments), *after]
         argv = list(self.specs[name].argv)
         mon = self.monitor
         if name == names.SIM_BRIDGE_NODE and mon.times:
