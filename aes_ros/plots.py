@@ -1,12 +1,15 @@
 """Figures a person can read: time-lapse snapshots and metrics against time.
 
-Shared by the offline simulator and the ROS launcher, so both runs look alike.
+Shared by the offline simulator and the ROS launcher, so both runs look alike. They
+take what they draw already reduced (a few samples, at most a few thousand points
+a line), so a long run costs no more memory than a short one.
 Uses the non-interactive Agg backend (headless machines, CI).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -18,45 +21,41 @@ from matplotlib.collections import LineCollection
 
 from aes_ros.formations import spring_pairs
 
+if TYPE_CHECKING:
+    from aes_ros.report import SnapshotView
 
-def snapshots(
-    path: Path,
-    times: np.ndarray,
-    positions: np.ndarray,
-    headings: np.ndarray,
-    neighbors: np.ndarray,
-    title: str = "",
-    panels: int = 4,
-) -> None:
-    """Time-lapse panels like one row of the paper's Fig. 3.
 
-    times : (T,) [s]; positions : (T, N, 2) [m]; headings : (T, N) [rad];
-    neighbors : (N, K) sheet (springs drawn as lines). Robots are drawn as
-    oriented arrows, the centroid path up to each panel's time as a line.
-    All panels share one scale and extent so the motion is visible.
+def snapshots(path: Path, view: SnapshotView, neighbors: np.ndarray, title: str = "") -> None:
+    """Time-lapse panels like one row of the paper's Fig. 3, one per sample of ``view``.
+
+    view : the panels' samples, the centroid's track and the extent of the run
+    (:func:`aes_ros.report.snapshot_view`); neighbors : (N, K) sheet (springs drawn
+    as lines). Robots are drawn as oriented arrows, the centroid path up to each
+    panel's time as a line. All panels share one scale and extent so the motion is
+    visible.
     """
-    idx = np.linspace(0, len(times) - 1, panels).round().astype(int)
+    panels = len(view.times)
     pairs = spring_pairs(neighbors)
-    centroid = positions.mean(axis=1)
-    lo = positions.reshape(-1, 2).min(axis=0) - 0.15
-    hi = positions.reshape(-1, 2).max(axis=0) + 0.15
+    lo, hi = view.lo - 0.15, view.hi + 0.15
     aspect = (hi[1] - lo[1]) / (hi[0] - lo[0])
     fig, axes = plt.subplots(
         1, panels, figsize=(4.2 * panels, 4.2 * aspect + 1.2), sharex=True, sharey=True
     )
-    arrow = 0.4 * _typical_spacing(positions[0], pairs)
-    for ax, k in zip(np.atleast_1d(axes), idx, strict=True):
-        p, h = positions[k], headings[k]
+    arrow = 0.4 * _typical_spacing(view.positions[0], pairs)
+    for ax, t, p, h in zip(
+        np.atleast_1d(axes), view.times, view.positions, view.headings, strict=True
+    ):
         ax.add_collection(
             LineCollection(p[pairs], colors="0.7", linewidths=0.8, zorder=1)  # springs
         )
-        ax.plot(centroid[: k + 1, 0], centroid[: k + 1, 1], color="tab:red", lw=1.5, zorder=2)
+        track = view.track[view.track_times <= t]
+        ax.plot(track[:, 0], track[:, 1], color="tab:red", lw=1.5, zorder=2)
         ax.quiver(
             p[:, 0], p[:, 1], np.cos(h) * arrow, np.sin(h) * arrow,
             angles="xy", scale_units="xy", scale=1.0, width=0.006, color="tab:blue", zorder=3,
         )  # fmt: skip
-        ax.plot(*centroid[k], marker="x", color="tab:red", ms=8, mew=2, zorder=4)
-        ax.set_title(f"t = {times[k]:.1f} s")
+        ax.plot(*p.mean(axis=0), marker="x", color="tab:red", ms=8, mew=2, zorder=4)
+        ax.set_title(f"t = {t:.1f} s")
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")

@@ -5,27 +5,24 @@
 - ``metrics.csv`` gets its rows (:data:`aes_ros.report.CSV_COLUMNS`, the same
   numbers :func:`aes_ros.report.metrics_table` gives for the whole run) appended
   as whole lines, one ``os.write`` per flush;
-- the trajectory goes into ``trajectory.parts/part-NNNNNN.npz``, one file per
-  flush, each written to a temporary name and renamed, so a part is either
-  complete or absent;
+- the trajectory is appended to ``trajectory.h5`` (:mod:`aes_ros.trajectory_file`:
+  one HDF5 file written with SWMR; each flush commits its samples);
 - both are flushed at least every ``flush_every`` wall seconds (1 s).
 
-:meth:`RunWriter.finish` then writes ``trajectory.npz`` and the plots
-(:func:`aes_ros.report.write_run_outputs`) and removes the parts. After a crash
-(even ``kill -9`` of the launcher) ``metrics.csv`` and the parts load with the
-usual readers (:func:`aes_ros.report.load_trajectory` reads the parts), and
-``aes-swarm report DIR`` (:func:`aes_ros.report.rebuild_run_outputs`) writes the
+Memory holds one flush's samples, never the run: :meth:`RunWriter.finish` closes the
+files and draws the plots and the summary from the disk
+(:func:`aes_ros.report.finish_run_outputs`, bounded whatever the run's length).
+After a crash (even ``kill -9`` of the launcher) ``metrics.csv`` and
+``trajectory.h5`` read back up to the last flush (:func:`aes_ros.report.load_trajectory`),
+and ``aes-swarm report DIR`` (:func:`aes_ros.report.rebuild_run_outputs`) writes the
 rest. A write that fails (disk full) stops the writer with :attr:`RunWriter.error`
 set; what was written before stays readable.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import os
-import shutil
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -33,13 +30,15 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros.report import (
-    CSV_COLUMNS,
-    PARTS_DIR,
-    load_trajectory,
-    metrics_table,
-    write_run_outputs,
+    TRAJECTORY_FILE,
+    Trajectory,
+    csv_header,
+    csv_rows,
+    finish_run_outputs,
+    metrics_rows,
 )
 from aes_ros.scenario import Scenario
+from aes_ros.trajectory_file import TrajectoryWriter, error_reason
 
 #: Wall seconds between flushes (at most what a crash can lose, plus one sample).
 FLUSH_EVERY = 1.0
@@ -52,7 +51,7 @@ class RunWriter:
 
     Parameters
     ----------
-    out_dir : the run's output directory (created; old parts in it are removed).
+    out_dir : the run's output directory (created; an old trajectory in it is removed).
     scenario : for the metrics (forces E4 with its gains and command).
     label : name of the run in the plots and the summary.
     flush_every : wall seconds between flushes.
@@ -76,18 +75,17 @@ class RunWriter:
         self.written = 0
         self.t_written: float | None = None
         self._pending: list[tuple[float, np.ndarray, np.ndarray]] = []
-        self._previous: tuple[float, np.ndarray, np.ndarray] | None = None
-        self._part = 0
+        self._previous: Trajectory | None = None  # the last sample written
         self._last_flush = clock()
         self._metrics_fd: int | None = None
+        self._trajectory: TrajectoryWriter | None = None  # created by the first flush
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
-            shutil.rmtree(self.out_dir / PARTS_DIR, ignore_errors=True)
-            (self.out_dir / PARTS_DIR).mkdir()
+            (self.out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
             (self.out_dir / RUN_FILE).write_text(json.dumps({"label": label}) + "\n")
             flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_APPEND
             self._metrics_fd = os.open(self.out_dir / "metrics.csv", flags, 0o644)
-            os.write(self._metrics_fd, _csv_lines([CSV_COLUMNS]))
+            _write_all(self._metrics_fd, csv_header())
         except OSError as exc:
             self._fail(exc)
 
@@ -114,71 +112,72 @@ class RunWriter:
         return k
 
     def flush(self) -> None:
-        """Write the pending samples (and their metrics rows) to disk."""
+        """Write the pending samples to ``trajectory.h5`` and commit them, then their
+        metrics rows to ``metrics.csv``."""
         self._last_flush = self._clock()
         if self.error is not None or not self._pending:
             return
-        window = ([self._previous] if self._previous is not None else []) + self._pending
-        if len(window) < 2:
+        if self._previous is None and len(self._pending) < 2:
             return  # the first row's angular velocity needs the second sample
-        times = np.array([s[0] for s in window])
-        positions = np.stack([s[1] for s in window])[None]
-        headings = np.stack([s[2] for s in window])[None]
-        table = metrics_table(times, positions, headings, self.scenario)
-        first = 1 if self._previous is not None else 0
-        rows = zip(*(table[c][first:] for c in CSV_COLUMNS), strict=True)
+        times = np.array([s[0] for s in self._pending], dtype=float)
+        positions = np.stack([s[1] for s in self._pending])[None].astype(float)
+        headings = np.stack([s[2] for s in self._pending])[None].astype(float)
+        table = metrics_rows(times, positions, headings, self.scenario, self._previous)
         try:
-            part = self.out_dir / PARTS_DIR / f"part-{self._part:06d}.npz"
-            temporary = part.with_name("." + part.name + ".tmp")
-            with open(temporary, "wb") as fh:
-                np.savez(
-                    fh,
-                    times=times[first:],
-                    positions=positions[:, first:],
-                    headings=headings[:, first:],
-                )
-            os.replace(temporary, part)
-            os.write(self._metrics_fd, _csv_lines([f"{v:.6g}" for v in row] for row in rows))
-        except OSError as exc:
+            if self._trajectory is None:
+                path = self.out_dir / TRAJECTORY_FILE
+                self._trajectory = TrajectoryWriter(path, 1, positions.shape[2])
+            self._trajectory.append(times, positions, headings)
+            self._trajectory.commit()
+            _write_all(self._metrics_fd, csv_rows(table))
+        except (OSError, RuntimeError, ValueError) as exc:
             self._fail(exc)
             return
-        self._part += 1
-        self.written += len(self._pending)
-        self.t_written = self._pending[-1][0]
-        self._previous = self._pending[-1]
+        self.written += len(times)
+        self.t_written = float(times[-1])
+        self._previous = Trajectory(times[-1:], positions[:, -1:], headings[:, -1:])
         self._pending = []
 
     def finish(self) -> str:
-        """Flush, then write ``trajectory.npz``, the full ``metrics.csv`` and the plots
-        and remove the parts. Returns the run's summary line ("" if nothing could
-        be written, or the writer failed: then the parts stay for ``aes-swarm report``)."""
+        """Flush, close ``trajectory.h5`` and ``metrics.csv`` (both then complete), and
+        draw the plots from the disk. Returns the run's summary line ("" if nothing
+        could be written, or the writer failed: then what is on disk stays for
+        ``aes-swarm report``)."""
         self.flush()
         self._close()
         if self.error is not None or self.written < 2:
             return ""
-        trajectory = load_trajectory(self.out_dir)
         try:
-            summary = write_run_outputs(
-                self.out_dir, trajectory.times, trajectory.positions, trajectory.headings,
-                self.scenario, label=self.label,
-            )  # fmt: skip
-        except OSError as exc:
+            return finish_run_outputs(self.out_dir, self.scenario, self.label)
+        except (OSError, RuntimeError) as exc:
             self._fail(exc)
             return ""
-        shutil.rmtree(self.out_dir / PARTS_DIR, ignore_errors=True)
-        return summary
 
-    def _fail(self, exc: OSError) -> None:
-        self.error = f"cannot write the outputs to {self.out_dir}: {exc.strerror or exc}"
+    def _fail(self, exc: Exception) -> None:
+        self.error = f"cannot write the outputs to {self.out_dir}: {error_reason(exc)}"
+        if self._trajectory is not None:
+            self._trajectory.abandon()  # as at its last commit; HDF5 must not retry
+            self._trajectory = None
         self._close()
 
     def _close(self) -> None:
         if self._metrics_fd is not None:
             os.close(self._metrics_fd)
             self._metrics_fd = None
+        if self._trajectory is not None:
+            trajectory, self._trajectory = self._trajectory, None
+            try:
+                trajectory.close()
+            except (OSError, RuntimeError) as exc:
+                self._trajectory = trajectory
+                self._fail(exc)
 
 
-def _csv_lines(rows) -> bytes:
-    buffer = io.StringIO()
-    csv.writer(buffer, lineterminator="\n").writerows(rows)
-    return buffer.getvalue().encode()
+def _write_all(fd: int | None, data: bytes) -> None:
+    """``os.write`` until every byte is written (a short write on a nearly full disk
+    is followed by one that raises)."""
+    if fd is None:
+        raise OSError(f"{fd}: not open")
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view) :]

@@ -21,6 +21,7 @@ import dashboard_node.node
 from aes_ros import scenario
 from aes_ros.cli import main
 from aes_ros.params import PARAMS
+from aes_ros.report import load_trajectory
 
 
 class Run(NamedTuple):
@@ -58,9 +59,10 @@ def test_simulate_writes_every_output(tmp_path: Path, aes_swarm) -> None:
     ]  # fmt: skip
     assert len(rows) == 101 and float(rows[-1]["t"]) == pytest.approx(5.0)
     assert float(rows[-1]["centroid_x"]) < float(rows[0]["centroid_x"])  # moving west
-    traj = np.load(out / "trajectory.npz")
-    assert traj["positions"].shape == (2, 101, 16, 2)
-    assert traj["headings"].shape == (2, 101, 16)
+    traj = load_trajectory(out / "trajectory.h5")
+    assert traj.times.shape == (101,)
+    assert traj.positions.shape == (2, 101, 16, 2)
+    assert traj.headings.shape == (2, 101, 16)
     for png in ("snapshots.png", "metrics.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -1,21 +1,39 @@
-"""A launch's outputs are on disk while it runs (aes_ros.run_writer, aes_ros.report):
-streamed rows equal the whole-run metrics, a run cut short loads and rebuilds, a
-full disk stops the writer with what was written still readable."""
+"""A launch's outputs are on disk while it runs (aes_ros.run_writer, aes_ros.report,
+aes_ros.trajectory_file): streamed rows equal the whole-run metrics, the trajectory
+reads back as it was fed, a run cut short (also by SIGKILL) loads and rebuilds, a
+full disk stops the writer with what was written still readable, and finishing a
+long run takes memory bounded independent of its length."""
 
 from __future__ import annotations
 
 import csv
 import errno
 import os
+import signal
+import subprocess
+import sys
+import time
+import tracemalloc
 from pathlib import Path
 
+import h5py
+import helpers.synthetic_run
 import numpy as np
 import pytest
+from helpers.synthetic_run import samples, synthetic_scenario
 
-from aes_ros import report, run_writer, scenario, simulator
-from aes_ros.report import PARTS_DIR, load_trajectory, metrics_table, rebuild_run_outputs
+from aes_ros import plots, report, run_writer, scenario, simulator
+from aes_ros.report import (
+    load_trajectory,
+    metrics_table,
+    rebuild_run_outputs,
+    trajectory_samples,
+)
 from aes_ros.ros.launch.plan import write_scenario
 from aes_ros.run_writer import RunWriter
+from aes_ros.trajectory_file import is_sealed
+
+SYNTHETIC = str(Path(helpers.synthetic_run.__file__))
 
 
 @pytest.fixture(scope="module")
@@ -47,29 +65,55 @@ def rows(path: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(fh))
 
 
-def test_streamed_outputs_equal_the_whole_run_and_finish_cleans_up(tmp_path: Path, run) -> None:
+def test_streamed_outputs_equal_the_whole_run(tmp_path: Path, run) -> None:
+    """metrics.csv streamed is the whole run's; the summary at the end has the numbers
+    of the whole run's metrics (a short run: the same line as before streaming)."""
     sc, result = run
     writer = stream(tmp_path, sc, result, Clock())
     assert writer.written >= len(result.times) - 10  # flushed about once a (fake) second
     streamed = rows(tmp_path / "metrics.csv")
     summary = writer.finish()
-    assert summary.startswith("combined (ROS): N=9 runs=1")
-    assert not (tmp_path / PARTS_DIR).exists()
+    table = metrics_table(result.times, result.positions, result.headings, sc)
+    assert summary == report.summary(table, "combined (ROS)", 9)
     final = rows(tmp_path / "metrics.csv")
     assert len(final) == len(result.times) and streamed == final[: len(streamed)]
-    table = metrics_table(result.times, result.positions, result.headings, sc)
     np.testing.assert_allclose(
         [float(r["angular_velocity"]) for r in final], table["angular_velocity"], rtol=1e-5
     )
-    traj = load_trajectory(tmp_path / "trajectory.npz")
-    np.testing.assert_array_equal(traj.positions, result.positions)
+    assert is_sealed(tmp_path / "trajectory.h5")  # closed: every HDF5 reader opens it
     for name in ("snapshots.png", "metrics.png"):
         assert (tmp_path / name).stat().st_size > 0
 
 
+def test_the_chunked_trajectory_reads_back_equal_to_what_was_fed(tmp_path: Path) -> None:
+    """Fed one sample at a time, flushed every few: trajectory.h5 holds exactly the
+    arrays fed, in the layout of ``simulate``, and reads back a slice or every k-th."""
+    sc = synthetic_scenario(7)
+    times, positions, headings = samples(0, 230, sc.nominal_positions())
+    clock = Clock()
+    writer = RunWriter(tmp_path, sc, "synthetic", clock=clock, flush_every=1.0)
+    for k in range(len(times)):
+        clock.now += 0.13  # a flush every 8 samples: many chunks and commits
+        writer.add(times[k], positions[k], headings[k])
+    assert writer.finish()
+    traj = load_trajectory(tmp_path / "trajectory.h5")
+    np.testing.assert_array_equal(traj.times, times)
+    np.testing.assert_array_equal(traj.positions, positions[None])
+    np.testing.assert_array_equal(traj.headings, headings[None])
+    view = load_trajectory(tmp_path, every=7, start=3, stop=200)
+    np.testing.assert_array_equal(view.positions, positions[None, 3:200:7])
+    np.testing.assert_array_equal(view.times, times[3:200:7])
+    chosen = trajectory_samples(tmp_path, [229, 0, 17, 17, -2])
+    np.testing.assert_array_equal(chosen.headings, headings[None, [229, 0, 17, 17, 228]])
+    with h5py.File(tmp_path / "trajectory.h5") as h5:  # what MATLAB and HDFView see
+        assert h5["positions"].attrs["units"] == "m" and h5["times"].attrs["units"] == "s"
+        assert h5["positions"].maxshape == (1, None, 7, 2) and h5["positions"].chunks[1] > 1
+        assert int(h5["n_samples"][()]) == 230
+
+
 def test_a_run_cut_short_loads_and_rebuilds(tmp_path: Path, run) -> None:
-    """The writer is never finished (its process killed): metrics.csv holds complete
-    rows up to the last flush, the parts load, ``aes-swarm report`` writes the rest."""
+    """The writer is never finished: metrics.csv holds complete rows up to the last
+    flush, trajectory.h5 its samples, ``aes-swarm report`` writes the rest."""
     sc, result = run
     write_scenario(sc, tmp_path / "scenario.yaml")
     clock = Clock()
@@ -77,14 +121,13 @@ def test_a_run_cut_short_loads_and_rebuilds(tmp_path: Path, run) -> None:
     on_disk = rows(tmp_path / "metrics.csv")
     assert len(on_disk) == writer.written and 20 <= writer.written < 35
     assert all(len(r) == len(report.CSV_COLUMNS) and None not in r.values() for r in on_disk)
-    partial = load_trajectory(tmp_path)
+    partial = load_trajectory(tmp_path)  # while its writer still has it open
     assert len(partial.times) == writer.written
     np.testing.assert_array_equal(partial.positions, result.positions[:, : writer.written])
     summary = rebuild_run_outputs(tmp_path)
     assert summary.startswith("combined (ROS): N=9")
     assert len(rows(tmp_path / "metrics.csv")) == writer.written
-    assert load_trajectory(tmp_path / "trajectory.npz").positions.shape == (1, writer.written, 9, 2)
-    assert not (tmp_path / PARTS_DIR).exists()
+    assert load_trajectory(tmp_path).positions.shape == (1, writer.written, 9, 2)
 
 
 def test_a_full_disk_stops_the_writer_and_keeps_what_was_written(
@@ -105,9 +148,72 @@ def test_a_full_disk_stops_the_writer_and_keeps_what_was_written(
         writer.add(result.times[k], result.positions[0, k], result.headings[0, k])
     monkeypatch.setattr(run_writer.os, "write", real_write)
     assert writer.error is not None and "No space left on device" in writer.error
-    assert writer.finish() == ""  # nothing more is written; the parts stay for `report`
+    assert writer.finish() == ""  # nothing more is written; the rest is for `report`
     assert len(rows(tmp_path / "metrics.csv")) == kept
     assert len(load_trajectory(tmp_path).times) >= kept
+
+
+def test_a_full_disk_under_hdf5_stops_the_writer_and_the_process_exits_cleanly(
+    tmp_path: Path,
+) -> None:
+    """HDF5's own write fails (a file size limit, like a full disk): the writer stops
+    with the system's reason, the process exits normally (a failed HDF5 flush closed
+    the usual way crashes the interpreter at exit), the file reads back to its last
+    commit."""
+    done = subprocess.run(
+        [sys.executable, SYNTHETIC, str(tmp_path), "--file-size-limit", "150000"],
+        capture_output=True, text=True, timeout=60,
+    )  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = done.stdout.splitlines()
+    assert any(line.startswith("error ") and "File too large" in line for line in lines), lines
+    written = int(lines[-1].split()[1])
+    traj = load_trajectory(tmp_path)
+    assert len(traj.times) >= written > 100
+    expected = samples(0, len(traj.times), synthetic_scenario(9).nominal_positions())
+    np.testing.assert_array_equal(traj.positions[0], expected[1])
+    assert len(rows(tmp_path / "metrics.csv")) == written
+
+
+def test_a_run_killed_mid_way_reads_back_to_its_last_flush_and_reports(tmp_path: Path) -> None:
+    """SIGKILL to a process streaming into a RunWriter (a flush every 50 ms): its
+    trajectory.h5 opens, holds at least every sample of the last flush it reported,
+    each equal to what was fed; metrics.csv holds complete rows; ``aes-swarm report``
+    then writes the plots and the summary and leaves an ordinary (closed) HDF5 file."""
+    writer = subprocess.Popen(
+        [sys.executable, SYNTHETIC, str(tmp_path)], stdout=subprocess.PIPE, text=True
+    )
+    try:
+        reported = 0
+        deadline = time.monotonic() + 60
+        while reported < 400 and time.monotonic() < deadline:
+            line = writer.stdout.readline()
+            if line.startswith("written "):
+                reported = int(line.split()[1])
+        os.kill(writer.pid, signal.SIGKILL)
+    finally:
+        writer.kill()
+        writer.wait(10)
+        writer.stdout.close()
+    assert writer.returncode == -signal.SIGKILL and reported >= 400
+    assert not is_sealed(tmp_path)  # as its killed writer left it
+    traj = load_trajectory(tmp_path)
+    assert len(traj.times) >= reported
+    expected = samples(0, len(traj.times), synthetic_scenario(9).nominal_positions())
+    np.testing.assert_array_equal(traj.times, expected[0])
+    np.testing.assert_array_equal(traj.positions[0], expected[1])
+    np.testing.assert_array_equal(traj.headings[0], expected[2])
+    on_disk = rows(tmp_path / "metrics.csv")
+    assert reported <= len(on_disk) <= len(traj.times)
+    assert all(None not in r.values() for r in on_disk)
+
+    summary = rebuild_run_outputs(tmp_path)
+    assert summary.startswith(f"synthetic: N=9 runs=1 t={(len(traj.times) - 1) * 0.02:.1f}s")
+    assert is_sealed(tmp_path)  # `report` rewrote it closed: MATLAB, HDFView open it
+    np.testing.assert_array_equal(load_trajectory(tmp_path).positions, traj.positions)
+    assert len(rows(tmp_path / "metrics.csv")) == len(traj.times)
+    for name in ("snapshots.png", "metrics.png"):
+        assert (tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_add_from_takes_growing_samples_where_it_stopped_up_to_t_end(tmp_path: Path, run) -> None:
@@ -122,5 +228,41 @@ def test_add_from_takes_growing_samples_where_it_stopped_up_to_t_end(tmp_path: P
     k = writer.add_from(times, positions, headings, k, t_end)
     assert k == 31 and writer.add_from(times, positions, headings, k, t_end) == 31
     writer.finish()
-    traj = load_trajectory(tmp_path / "trajectory.npz")
+    traj = load_trajectory(tmp_path / "trajectory.h5")
     np.testing.assert_array_equal(traj.times, result.times[2:31])
+
+
+def test_finishing_a_long_run_takes_memory_independent_of_its_length(tmp_path: Path) -> None:
+    """200 000 samples of 20 robots (an hour at 55 Hz) streamed in chunks: finish()
+    (plots and summary) peaks at a small part of what loading the trajectory would
+    take, and its summary is that of the whole run's metrics."""
+    n_samples, robots, chunk = 200_000, 20, 1_000
+    sc = synthetic_scenario(robots)
+    nominal = sc.nominal_positions()
+    clock = Clock()
+    writer = RunWriter(tmp_path, sc, "long", clock=clock)
+    for start in range(0, n_samples, chunk):
+        times, positions, headings = samples(start, start + chunk, nominal)
+        for k in range(chunk):
+            writer.add(times[k], positions[k], headings[k])
+        clock.now += 1.0  # one flush per chunk
+    whole = 8 * n_samples * (1 + 3 * robots)  # times, positions, headings as float64
+    assert plots  # matplotlib imported before: its modules are not the run's memory
+    tracemalloc.start()
+    try:
+        summary = writer.finish()
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    print(
+        f"\nwhole trajectory {whole / 1e6:.1f} MB, peak traced during finish() {peak / 1e6:.1f} MB"
+    )
+    assert writer.written == n_samples
+    assert peak < whole / 4, (peak, whole)
+    head, tail = samples(0, 2, nominal), samples(n_samples - 1, n_samples, nominal)
+    assert summary.startswith(f"long: N=20 runs=1 t={tail[0][-1] - head[0][0]:.1f}s")
+    moved = np.linalg.norm(tail[1][0].mean(axis=0) - head[1][0].mean(axis=0))
+    assert f"centroid moved {moved:.2f} m" in summary
+    last = metrics_table(*samples(n_samples - 2, n_samples, nominal), sc)
+    assert f"psi={last['alignment'][-1]:.3f} psi_heading={last['heading_order'][-1]:.3f}" in summary
+    assert summary.endswith("omega=+0.010 rad/s")  # the formation turns at 0.01 rad/s
