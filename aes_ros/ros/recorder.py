@@ -56,7 +56,14 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.bag import SPLIT_FORMS, Recording, Split, last_sequences, parse_split
+from aes_ros.ros.bag import (
+    SPLIT_FORMS,
+    Recording,
+    Split,
+    last_sequences,
+    parse_split,
+    read_sequences,
+)
 from aes_ros.ros.cdr import decode_stamp
 from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, IMAGES, LATCHED, SENSOR, STREAM_WRITER
@@ -341,7 +348,8 @@ def main(argv: list[str] | None = None) -> int:
     node = None
     code = 0
     try:
-        after = last_sequences(args.after)
+        # the journal if the recording has one: reading the segments takes minutes
+        after = (read_sequences(args.output) or last_sequences(args.after)) if args.after else {}
         bag = Recording(
             args.output,
             split=args.split,

@@ -26,6 +26,7 @@ from aes_ros.ros.bag import (
     parse_split,
     read_bag,
     read_bags,
+    read_sequences,
     recording_summary,
     segment_path,
 )
@@ -212,6 +213,23 @@ def test_a_restarted_recorder_continues_the_numbering(tmp_path: Path) -> None:
     fresh = Recording(base)
     fresh.close()
     assert bag_segments(base) == [base]
+
+
+def test_the_journal_gives_a_restart_the_last_numbers_on_disk(tmp_path: Path) -> None:
+    """Each flush leaves the last sequence numbers on disk in the journal, equal to what
+    reading every segment gives (a restarted recorder reads it: the segments of a
+    100-robot swarm take minutes); messages not flushed yet are not in it; a new
+    recording at the path starts without one."""
+    base = tmp_path / "run.mcap"
+    rec = start(base, split=Split(seconds=10.0))
+    write_stream(rec, range(50))
+    rec.flush()
+    write_stream(rec, range(50, 53))  # then killed before the next flush
+    journal = read_sequences(base)
+    assert journal == last_sequences(bag_segments(base))
+    assert journal[STREAM] == (50, T0 + 49 * STEP) and journal[LATCHED] == (1, T0)
+    Recording(base).close()
+    assert read_sequences(base) is None
 
 
 # ----------------------------------------------------------------------------- launch
