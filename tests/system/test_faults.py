@@ -41,6 +41,7 @@ from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.launch.processes import FASTDDS_PROFILE
 from aes_ros.ros.qos import COMMAND, LATCHED, STREAM_WRITER
+from aes_ros.trajectory_file import is_sealed
 
 N = 16
 #: Robots of robot_host_1 (two hosts, robots split evenly).
@@ -167,7 +168,7 @@ def check_metrics_without_gaps(out: Path, duration: float, recovery: float) -> f
     assert t[-1] - t[0] >= duration - 1e-6
     gap = float(np.diff(t).max())
     assert gap <= recovery, f"a gap of {gap:.2f} s sim time, recovery {recovery:.2f} s"
-    traj = load_trajectory(out / "trajectory.npz")
+    traj = load_trajectory(out / "trajectory.h5")
     np.testing.assert_allclose(traj.times, t, atol=1e-5)
     return gap
 
@@ -236,7 +237,7 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     assert all(len(r) == 7 and None not in r.values() for r in rows)
     t_last = float(rows[-1]["t"])
     assert t_kill - 2.0 <= t_last <= t_kill, (t_kill, t_last)  # real time: 2 s of sim time
-    partial = load_trajectory(out)  # the parts of the run cut short
+    partial = load_trajectory(out)  # trajectory.h5 as the killed launcher left it
     assert len(partial.times) >= len(rows) and partial.positions.shape[2] == N
     report = subprocess.run(
         [str(Path(sys.executable).parent / "aes-swarm"), "report", str(out)],
@@ -244,9 +245,9 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     )  # fmt: skip
     assert report.returncode == 0, report.stderr
     assert report.stdout.startswith("linear (ROS): N=16")
-    for name in ("trajectory.npz", "snapshots.png", "metrics.png"):
+    for name in ("trajectory.h5", "snapshots.png", "metrics.png"):
         assert (out / name).stat().st_size > 0
-    assert not (out / "trajectory.parts").exists()
+    assert is_sealed(out / "trajectory.h5")  # rewritten closed: any HDF5 reader opens it
     assert list(read_bags(bag_segments(tmp_path / "run.mcap"), [names.CLOCK]))  # readable
     print(f"\nlauncher killed at sim time {t_kill:.2f} s: metrics.csv holds up to "
           f"{t_last:.2f} s ({t_kill - t_last:.2f} s lost), "
@@ -305,7 +306,7 @@ def test_on_failure_stop_ends_the_run_with_its_outputs(spawn, probe, ros_env, tm
     log = spawn.log(launcher).read_text()
     assert "supervisor died (SIGKILL); --on-failure stop" in log, log[-2000:]
     assert len(metrics_rows(out / "metrics.csv")) > 40
-    assert (out / "trajectory.npz").exists() and (out / "metrics.png").exists()
+    assert (out / "trajectory.h5").exists() and (out / "metrics.png").exists()
     assert_no_orphans(ros_env)
 
 

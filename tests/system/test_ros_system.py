@@ -79,9 +79,9 @@ def test_linear_moves_west_orders_and_records_a_bag(spawn, ros_env, tmp_path) ->
     assert rc == 0, log
     assert "all 16 robots moving" in log
     assert "processes stopped cleanly" in log, log  # every node exited 0 on SIGINT
-    for name in ("trajectory.npz", "metrics.csv", "snapshots.png", "metrics.png"):
+    for name in ("trajectory.h5", "metrics.csv", "snapshots.png", "metrics.png"):
         assert (out / name).stat().st_size > 0, name
-    traj = load_trajectory(out / "trajectory.npz")
+    traj = load_trajectory(out / "trajectory.h5")
     times, pos, head = traj.times, traj.positions[0], traj.headings[0]
     assert pos.shape[1:] == (16, 2) and times[-1] - times[0] >= 15.0 - 1e-6
     moved = pos[-1].mean(axis=0) - pos[0].mean(axis=0)
@@ -130,7 +130,7 @@ def test_ros_system_equals_offline_simulator(spawn, ros_env, tmp_path) -> None:
         "--set", "d_r=0", "--set", "d_theta=0", "--set", "clip=false", "--out", str(out),
     )  # fmt: skip
     assert rc == 0, log
-    traj = load_trajectory(out / "trajectory.npz")
+    traj = load_trajectory(out / "trajectory.h5")
     times, pos, head = traj.times, traj.positions[0], traj.headings[0]
 
     sc = scenario.load("linear", {"d_r": 0.0, "d_theta": 0.0, "duration": 10.0}).with_robots(16)
@@ -162,7 +162,7 @@ def test_rotation_turns_counter_clockwise_about_the_centroid(spawn, ros_env, tmp
         timeout=180.0,
     )  # fmt: skip
     assert rc == 0, log
-    traj = load_trajectory(out / "trajectory.npz")
+    traj = load_trajectory(out / "trajectory.h5")
     times, pos = traj.times, traj.positions[0]
     later = times >= times[0] + 4.0
     omega = metrics.rotation_angle(pos[later][:-1], pos[later][1:]) / np.diff(times[later])
