@@ -11,9 +11,9 @@ from pathlib import Path
 from aes_ros.ros.bag import parse_split
 from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
 
-#: Bytes per sample per robot of the trajectory: 3 float64 in the parts, again in
-#: trajectory.npz (compressed, but no smaller than half of that in practice).
-TRAJECTORY_BYTES = 3 * 8 * 2
+#: Bytes per sample per robot of the trajectory: 3 float64 in trajectory.h5, written
+#: once (uncompressed; its partly filled last chunks are within the 2 MB below).
+TRAJECTORY_BYTES = 3 * 8
 #: Bytes per metrics.csv row.
 METRICS_ROW_BYTES = 90
 #: Bag bytes per control step: per robot its pose in /swarm/poses (56) and a
