@@ -34,7 +34,7 @@ COMMANDS: dict[str, str] = {
 #: Longer descriptions shown by ``aes-swarm <command> --help``.
 DESCRIPTIONS: dict[str, str] = {
     "simulate": "Run a scenario offline (batched numpy/numba simulator, SPEC §1.4) and "
-    "write trajectory.npz, metrics.csv, snapshots.png and metrics.png to --out.",
+    "write trajectory.h5, metrics.csv, snapshots.png and metrics.png to --out.",
     "optimize": "Tune the gains with TCACS (SPEC §6) on J (E10): every candidate is "
     "simulated with the same --mc seeds (common random numbers), all ants x all runs "
     "of an iteration in one batch. Writes result.json, history.csv and convergence.png "
@@ -49,14 +49,16 @@ DESCRIPTIONS: dict[str, str] = {
     "point and run), points.csv, sweep_metrics.png and sweep.json; resumable.",
     "launch": "Start aes-sim-bridge, aes-supervisor and the robot nodes as separate "
     "processes, wait until every robot moves, run for --duration seconds of sim time "
-    "(or until Ctrl-C), stop everything cleanly and write trajectory.npz, metrics.csv, "
-    "snapshots.png and metrics.png to --out.",
+    "(or until Ctrl-C), stop everything cleanly and write trajectory.h5, metrics.csv, "
+    "snapshots.png and metrics.png to --out (the trajectory and the metrics streamed to "
+    "disk as it runs).",
     "dashboard": "A ROS node with a web server: the swarm drawn live (robots coloured by "
     "their force alignment, springs by strain, the centroid's trail), strip charts of the "
     "order and the force, and controls that act through the swarm's public ROS interface.",
-    "report": "Write trajectory.npz, metrics.csv, snapshots.png and metrics.png of a run "
-    "directory from the trajectory parts that aes-swarm launch streams while it runs, e.g. "
-    "after the launcher was killed.",
+    "report": "Write metrics.csv, snapshots.png and metrics.png of a run directory from "
+    "the trajectory.h5 that aes-swarm launch streams while it runs, e.g. after the launcher "
+    "was killed (trajectory.h5 is then rewritten closed, for readers other than h5py with "
+    "swmr=True).",
     "steer": "Publish one geometry_msgs/Twist on /swarm/cmd (linear.x/y = desired "
     "direction, angular.z = rotation rate ω, counter-clockwise positive) and wait until "
     "the supervisor echoes it on /swarm/desired_velocity. A value not given keeps the "
