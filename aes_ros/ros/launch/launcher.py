@@ -24,8 +24,9 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
 4. stops every process (SIGINT to its group, SIGKILL after ``stop_timeout``), the
    recorder last so that the bag is complete and closed, and cleans Fast DDS
    shared memory left by killed processes;
-5. writes ``trajectory.npz``, ``metrics.csv``, ``snapshots.png`` and ``metrics.png``
-   (:func:`aes_ros.report.write_run_outputs`; times are sim times [s], in a real
+5. completes ``trajectory.h5`` and ``metrics.csv`` and draws ``snapshots.png`` and
+   ``metrics.png`` from the disk (:func:`aes_ros.report.finish_run_outputs`, in memory
+   bounded whatever the run's length; times are sim times [s], in a real
    arena seconds from the first tracked pose; the first sample is the last one before
    every robot had moved).
 
@@ -91,7 +92,7 @@ class LaunchResult:
     a run of hours is not held in memory.
     t_go : sim time [s] of the first sample (the last one before every robot moved).
     stopped_by : None when the run lasted ``duration``, else the signal's name.
-    summary : the one-line summary of write_run_outputs ("" when nothing was written).
+    summary : the run's one-line summary ("" when nothing was written).
     killed : processes that had to be SIGKILLed at the end.
     exit_codes : every process's exit code (0 = clean shutdown).
     failure : why the run did not complete, or its outputs are incomplete (None: it
