@@ -115,6 +115,8 @@ class Verdict:
     gaps: list[tuple[float, float]] = field(default_factory=list)
     lost_outside: int = 0
     lost_inside: int = 0
+    #: (topic, wall time before, after, lost) of the losses outside recovery windows.
+    lost_where: list[tuple[str, float, float, int]] = field(default_factory=list)
     orphans: list[str] = field(default_factory=list)
     shm_left: list[str] = field(default_factory=list)
     segments: int = 0
@@ -178,6 +180,32 @@ def shm_files() -> set[str]:
     return {p.name for p in Path("/dev/shm").glob("*fastrtps*")}
 
 
+def abandoned_shm(before: set[str]) -> list[str]:
+    """Fast DDS shared-memory files made since ``before`` that belong to nobody: of a
+    segment or port (its data, ``_el``/``_sl`` lock and ``sem.…_mutex`` files) that no
+    live process maps or holds a lock on. Another swarm on the machine meanwhile keeps
+    its own files mapped or locked."""
+    from aes_ros.ros.launch.shared_memory import SHM_DIR, locked_inodes, mapped_files
+
+    locked, mapped = locked_inodes(), mapped_files()
+    groups: dict[str, list[Path]] = {}
+    for path in SHM_DIR.glob("*fastrtps*"):
+        key = re.sub(r"^sem\.|(_el|_sl|_mutex)$", "", path.name)
+        groups.setdefault(key, []).append(path)
+
+    def used(path: Path) -> bool:
+        try:
+            return str(path) in mapped or path.stat().st_ino in locked
+        except OSError:
+            return True  # gone meanwhile: not left
+
+    left = []
+    for files in groups.values():
+        if not any(used(p) for p in files):
+            left += [p.name for p in files if p.name not in before]
+    return sorted(left)
+
+
 # ---------------------------------------------------------------------- analysis
 
 
@@ -225,10 +253,13 @@ def metric_gaps(
     return found
 
 
-def bag_losses(segments: list[Path], windows: list[tuple[float, float]]) -> tuple[int, int]:
+def bag_losses(
+    segments: list[Path], windows: list[tuple[float, float]], where: list | None = None
+) -> tuple[int, int]:
     """(lost outside ``windows``, lost inside) [messages]: gaps in each topic's sequence
     numbers across the segments in order (:class:`aes_ros.ros.bag.SequenceGaps`), placed
-    between the log times [s since the epoch] of the messages around them."""
+    between the log times [s since the epoch] of the messages around them. ``where``
+    gets (topic, log time before, log time after, lost) of each loss outside."""
     from mcap.reader import NonSeekingReader
 
     gaps = SequenceGaps()
@@ -254,6 +285,8 @@ def bag_losses(segments: list[Path], windows: list[tuple[float, float]]) -> tupl
                     inside += lost
                 else:
                     outside += lost
+                    if where is not None:
+                        where.append((topic, before, logged, lost))
     return outside, inside
 
 
@@ -363,12 +396,12 @@ def judge(
     segments = bag_segments(bag)
     v.segments = len(segments)
     v.segments_readable = sum(readable(s) for s in segments)
-    v.lost_outside, v.lost_inside = bag_losses(segments, wall_windows)
+    v.lost_outside, v.lost_inside = bag_losses(segments, wall_windows, v.lost_where)
     deadline = time.monotonic() + 15
     while domain_processes(domain) and time.monotonic() < deadline:
         time.sleep(0.5)
     v.orphans = [f"{name} ({pid})" for pid, name in domain_processes(domain).items()]
-    v.shm_left = sorted(shm_files() - shm_before)
+    v.shm_left = abandoned_shm(shm_before)
     return v
 
 
@@ -450,6 +483,10 @@ def main(argv: list[str] | None = None) -> int:
               f"{'{}->{}'.format(*g.threads):>10}")  # fmt: skip
     if v.gaps:
         print(f"gaps in metrics.csv outside recovery: {v.gaps[:10]}")
+    for topic, before, after, lost in v.lost_where[:10]:
+        print(f"lost outside recovery: {lost} of {topic} between "
+              f"{time.strftime('%H:%M:%S', time.localtime(before))} and "
+              f"{time.strftime('%H:%M:%S', time.localtime(after))}")  # fmt: skip
     rss = " ".join(f"rss_{g.process}={g.warm_mb:.0f}->{g.end_mb:.0f}MB "
                    f"slope_{g.process}={g.slope_mb_h:.1f}" for g in v.growth)  # fmt: skip
     worst = max((g.growth_pct for g in v.growth), default=float("nan"))
