@@ -474,3 +474,19 @@ def rebuild_run_outputs(out_dir: Path) -> str:
     if run_file.exists():
         label = json.loads(run_file.read_text()).get("label", label)
     return finish_run_outputs(out_dir, scenario, label)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m aes_ros.report OUT_DIR SCENARIO_FILE LABEL``: the plots and the
+    summary of a run whose files are complete (:func:`finish_run_outputs`), in a
+    process of their own (:meth:`aes_ros.run_writer.RunWriter.finish`); prints the
+    summary line."""
+    import sys
+
+    out_dir, scenario_file, label = argv if argv is not None else sys.argv[1:]
+    print(finish_run_outputs(Path(out_dir), scenario_mod.load(Path(scenario_file)), label))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -11,7 +11,10 @@
 
 Memory holds one flush's samples, never the run: :meth:`RunWriter.finish` closes the
 files and draws the plots and the summary from the disk
-(:func:`aes_ros.report.finish_run_outputs`, bounded whatever the run's length).
+(:func:`aes_ros.report.finish_run_outputs`, bounded whatever the run's length); given
+the scenario's file it does that in a child process (``python -m aes_ros.report``),
+so that a long-lived caller (the launcher) never loads matplotlib and its memory
+stays what it was during the run (``bench/bench_soak.py`` checks it).
 After a crash (even ``kill -9`` of the launcher) ``metrics.csv`` and
 ``trajectory.h5`` read back up to the last flush (:func:`aes_ros.report.load_trajectory`),
 and ``aes-swarm report DIR`` (:func:`aes_ros.report.rebuild_run_outputs`) writes the
@@ -23,6 +26,8 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -138,20 +143,33 @@ class RunWriter:
         self._previous = Trajectory(times[-1:], positions[:, -1:], headings[:, -1:])
         self._pending = []
 
-    def finish(self) -> str:
+    def finish(self, scenario_file: Path | None = None) -> str:
         """Flush, close ``trajectory.h5`` and ``metrics.csv`` (both then complete), and
-        draw the plots from the disk. Returns the run's summary line ("" if nothing
+        draw the plots from the disk, in a child process given ``scenario_file`` (this
+        run's scenario as a file). Returns the run's summary line ("" if nothing
         could be written, or the writer failed: then what is on disk stays for
         ``aes-swarm report``)."""
         self.flush()
         self._close()
         if self.error is not None or self.written < 2:
             return ""
+        if scenario_file is not None:
+            return self._finish_in_child(Path(scenario_file))
         try:
             return finish_run_outputs(self.out_dir, self.scenario, self.label)
         except (OSError, RuntimeError) as exc:
             self._fail(exc)
             return ""
+
+    def _finish_in_child(self, scenario_file: Path) -> str:
+        command = [sys.executable, "-m", "aes_ros.report", str(self.out_dir),
+                   str(scenario_file), self.label]  # fmt: skip
+        done = subprocess.run(command, capture_output=True, text=True, check=False)
+        if done.returncode != 0:
+            why = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
+            self.error = f"cannot draw the outputs in {self.out_dir}: {why}"
+            return ""
+        return done.stdout.strip().splitlines()[-1] if done.stdout.strip() else ""
 
     def _fail(self, exc: Exception) -> None:
         self.error = f"cannot write the outputs to {self.out_dir}: {error_reason(exc)}"

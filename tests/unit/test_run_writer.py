@@ -291,3 +291,18 @@ def test_streaming_a_long_run_keeps_the_writers_memory_flat(tmp_path: Path) -> N
             warm = _rss_mb()
     assert writer.written > 11_900
     assert _rss_mb() - warm < 6.0
+
+
+def test_the_plots_drawn_in_a_child_process_are_the_same(tmp_path: Path, run) -> None:
+    """finish(scenario_file) draws in a child process (the launcher's way: it never
+    loads matplotlib) the same outputs and summary as in this process."""
+    sc, result = run
+    here, child = tmp_path / "here", tmp_path / "child"
+    expected = stream(here, sc, result, Clock()).finish()
+    scenario_file = write_scenario(sc, tmp_path / "scenario.yaml")
+    assert stream(child, sc, result, Clock()).finish(scenario_file) == expected
+    for name in ("snapshots.png", "metrics.png"):
+        assert (child / name).stat().st_size > 0
+    broken = stream(tmp_path / "broken", sc, result, Clock())
+    assert broken.finish(tmp_path / "missing.yaml") == ""
+    assert "cannot draw the outputs" in broken.error

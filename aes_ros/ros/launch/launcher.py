@@ -390,7 +390,8 @@ def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchRe
     if launcher.stop_reason is not None:
         say(f"launch: stopped by {launcher.stop_reason} at sim time {t_last:.2f} s")
     if launcher.writer is not None:
-        result.summary = launcher.writer.finish()
+        # drawn in a child: the launcher's memory stays what it was during the run
+        result.summary = launcher.writer.finish(launcher.work_dir / "scenario.yaml")
         if launcher.writer.error is not None and result.failure is None:
             result.failure = f"the outputs are incomplete: {launcher.writer.error}"
     if launcher.supervision is not None:
