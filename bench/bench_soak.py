@@ -61,7 +61,8 @@ from pathlib import Path
 
 import numpy as np
 
-from aes_ros.ros.bag import SequenceGaps, bag_is_closed, bag_segments
+from aes_ros.ros.bag import SequenceGaps, bag_is_closed, bag_segments, raw_messages
+from aes_ros.ros.launch import processes as launch_processes
 from aes_ros.ros.launch.events import read_events
 
 BIN = Path(sys.executable).parent
@@ -146,22 +147,11 @@ def process_name(cmdline: list[str]) -> str | None:
 
 
 def domain_processes(domain: str) -> dict[int, str]:
-    """pid -> name of the live processes of ``domain`` (zombies left out)."""
-    found = {}
-    needle = f"ROS_DOMAIN_ID={domain}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            if needle not in (entry / "environ").read_bytes().split(b"\0"):
-                continue
-            if (entry / "stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
-                continue
-            cmdline = (entry / "cmdline").read_bytes().decode().split("\0")
-        except OSError:
-            continue
-        found[int(entry.name)] = process_name(cmdline) or Path(cmdline[0]).name
-    return found
+    """pid -> name of the live processes of ``domain``."""
+    return {
+        pid: process_name(argv) or Path(argv[0]).name
+        for pid, argv in launch_processes.domain_processes(domain).items()
+    }
 
 
 def measure(pid: int) -> tuple[float, int, int] | None:
@@ -260,48 +250,28 @@ def bag_losses(
     numbers across the segments in order (:class:`aes_ros.ros.bag.SequenceGaps`), placed
     between the log times [s since the epoch] of the messages around them. ``where``
     gets (topic, log time before, log time after, lost) of each loss outside."""
-    from mcap.reader import NonSeekingReader
-
     gaps = SequenceGaps()
     last_log: dict[str, float] = {}
     outside = inside = 0
-    for path in segments:
-        with open(path, "rb") as fh:
-            messages = NonSeekingReader(fh).iter_messages(log_time_order=False)
-            while True:
-                try:
-                    _, channel, message = next(messages)
-                except StopIteration:
-                    break
-                except Exception:  # the end of a segment cut by a kill
-                    break
-                topic, logged = channel.topic, message.log_time * 1e-9
-                lost = gaps.seen(topic, message.sequence, message.publish_time)
-                before = last_log.get(topic, logged)
-                last_log[topic] = logged
-                if not lost:
-                    continue
-                if any(before <= w1 + SLACK and logged >= w0 - SLACK for w0, w1 in windows):
-                    inside += lost
-                else:
-                    outside += lost
-                    if where is not None:
-                        where.append((topic, before, logged, lost))
+    for channel, message in raw_messages(segments):
+        topic, logged = channel.topic, message.log_time * 1e-9
+        lost = gaps.seen(topic, message.sequence, message.publish_time)
+        before = last_log.get(topic, logged)
+        last_log[topic] = logged
+        if not lost:
+            continue
+        if any(before <= w1 + SLACK and logged >= w0 - SLACK for w0, w1 in windows):
+            inside += lost
+        else:
+            outside += lost
+            if where is not None:
+                where.append((topic, before, logged, lost))
     return outside, inside
 
 
 def readable(segment: Path) -> bool:
     """A segment is readable: closed, or cut by a kill and read up to its last chunk."""
-    if bag_is_closed(segment):
-        return True
-    from mcap.reader import NonSeekingReader
-
-    with open(segment, "rb") as fh:
-        try:
-            next(NonSeekingReader(fh).iter_messages(log_time_order=False))
-        except Exception:
-            return False
-    return True
+    return bag_is_closed(segment) or next(raw_messages([segment]), None) is not None
 
 
 # --------------------------------------------------------------------------- run

@@ -301,16 +301,12 @@ def read_sequences(path: str | Path) -> dict[str, tuple[int, int]] | None:
         return None
 
 
-def last_sequences(paths: Iterable[str | Path]) -> dict[str, tuple[int, int]]:
-    """(publisher's sequence number, publish time [ns]) of the last message of each
-    topic in the segments ``paths`` (read up to the end of what a killed recorder left).
-
-    Reads every message: a segment of a 100-robot swarm holds 5000 a second, so a
-    restarted recorder reads the recording's journal (:func:`read_sequences`) instead;
-    this is for recordings without one."""
+def raw_messages(paths: Iterable[str | Path]) -> Iterator[tuple[Any, Any]]:
+    """(MCAP channel, message record) of every message of the segments ``paths`` in
+    order, in write order, undecoded; a segment cut off by a kill ends at its last
+    complete record."""
     from mcap.reader import NonSeekingReader
 
-    last: dict[str, tuple[int, int]] = {}
     for path in paths:
         with open(path, "rb") as fh:
             messages = NonSeekingReader(fh).iter_messages(log_time_order=False)
@@ -321,9 +317,21 @@ def last_sequences(paths: Iterable[str | Path]) -> dict[str, tuple[int, int]]:
                     break
                 except Exception:  # the record cut off by a kill: the end of what is there
                     break
-                previous = last.get(channel.topic)
-                if previous is None or message.publish_time >= previous[1]:
-                    last[channel.topic] = (message.sequence, message.publish_time)
+                yield channel, message
+
+
+def last_sequences(paths: Iterable[str | Path]) -> dict[str, tuple[int, int]]:
+    """(publisher's sequence number, publish time [ns]) of the last message of each
+    topic in the segments ``paths`` (read up to the end of what a killed recorder left).
+
+    Reads every message: a segment of a 100-robot swarm holds 5000 a second, so a
+    restarted recorder reads the recording's journal (:func:`read_sequences`) instead;
+    this is for recordings without one."""
+    last: dict[str, tuple[int, int]] = {}
+    for channel, message in raw_messages(paths):
+        previous = last.get(channel.topic)
+        if previous is None or message.publish_time >= previous[1]:
+            last[channel.topic] = (message.sequence, message.publish_time)
     return last
 
 

@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
-from aes_ros.ros.launch.processes import Child, ProcessSet
+from aes_ros.ros.launch.processes import Child, ProcessSet, domain_processes
 
 #: Default wait [s] for a reply, a match or a service: generous, since other tests
 #: may load the 2 cores.
@@ -101,22 +101,7 @@ def abandoned_shm(before: set[str]) -> set[str]:
 
 
 def _domain_processes(domain: str) -> list[tuple[int, str]]:
-    found = []
-    needle = f"ROS_DOMAIN_ID={domain}".encode()
-    for entry in Path("/proc").iterdir():
-        if not entry.name.isdigit() or int(entry.name) == os.getpid():
-            continue
-        try:
-            if needle not in (entry / "environ").read_bytes().split(b"\0"):
-                continue
-            stat = (entry / "stat").read_text()
-            if stat.rsplit(")", 1)[1].split()[0] == "Z":
-                continue
-            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode()
-            found.append((int(entry.name), cmdline))
-        except OSError:
-            continue
-    return found
+    return [(pid, " ".join(argv).strip()) for pid, argv in domain_processes(domain).items()]
 
 
 def assert_no_orphans(ros_env: dict[str, str], timeout: float = 15.0) -> None:

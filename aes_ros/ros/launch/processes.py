@@ -197,3 +197,22 @@ def ros_domain(env: dict[str, str]) -> int:
     """The ROS domain id of an environment (0 when unset or not a number)."""
     value = env.get("ROS_DOMAIN_ID", "0")
     return int(value) if value.isdigit() else 0
+
+
+def domain_processes(domain: str | int) -> dict[int, list[str]]:
+    """pid -> command line of the live processes (zombies and this one left out) whose
+    environment has ``ROS_DOMAIN_ID=domain``: what a launch in that domain left running."""
+    found = {}
+    needle = f"ROS_DOMAIN_ID={domain}".encode()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if needle not in (entry / "environ").read_bytes().split(b"\0"):
+                continue
+            if (entry / "stat").read_text().rsplit(")", 1)[1].split()[0] == "Z":
+                continue
+            found[int(entry.name)] = (entry / "cmdline").read_bytes().decode().split("\0")
+        except OSError:
+            continue
+    return found
