@@ -5,6 +5,7 @@ Examples::
     aes-swarm launch --setup combined --robots 100 --duration 30 --out out/ros \
         --record out/ros/run.mcap
     aes-swarm launch --setup linear --robots 16 --lockstep --real-time-factor 0 --out out/lin
+    aes-swarm launch --robots 1000 --discovery server --out out/big   # . out/big/ros_env.sh
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
@@ -20,6 +21,7 @@ from pathlib import Path
 
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_ABOVE, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
 
@@ -77,6 +79,23 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "0: any free port) and print its URL",
     )  # fmt: skip
     p.add_argument(
+        "--discovery", choices=DISCOVERY_MODES, default="auto",
+        help=f"how the processes find each other: Fast DDS's simple discovery, or a "
+        f"discovery server (started as one more process of the launch unless "
+        f"--discovery-server is given; ros2 commands then need the environment it prints, "
+        f"also in OUT/ros_env.sh); auto (default): a server above "
+        f"{DISCOVERY_SERVER_ABOVE} robots or with --discovery-server or --discovery-port",
+    )  # fmt: skip
+    p.add_argument(
+        "--discovery-server", type=_address, default=None, metavar="HOST:PORT",
+        help="use this running discovery server (id 0, e.g. on another host) instead of "
+        "starting one",
+    )  # fmt: skip
+    p.add_argument(
+        "--discovery-port", type=number_type(int, 1, 65535), default=None, metavar="PORT",
+        help="the UDP port of the discovery server the launch starts (default: a free one)",
+    )  # fmt: skip
+    p.add_argument(
         "--tracking", choices=TRACKING, default="none",
         help="camera: the robots take their neighbours' positions from a simulated overhead "
         "camera and the ArUco tracker; the bridge's exact poses go to /sim/ground_truth/poses "
@@ -106,6 +125,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--camera-rate", type=number_type(float, 0.1, 240.0), default=20.0, metavar="HZ",
         help="the simulated camera's frames per second of sim time (default 20)",
     )  # fmt: skip
+
+
+def _address(text: str) -> str:
+    """``HOST:PORT`` of a discovery server (:func:`aes_ros.ros.discovery.parse_address`)."""
+    try:
+        host, port = parse_address(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return f"{host}:{port}"
 
 
 def _pixels(text: str) -> tuple[int, int]:
@@ -148,6 +176,9 @@ def run(args: argparse.Namespace) -> int:
             record_images=args.record_images,
             camera_source=args.camera_source,
             calibration=args.calibration,
+            discovery=args.discovery,
+            discovery_server=args.discovery_server,
+            discovery_port=args.discovery_port,
         )
     except ValueError as exc:  # an option that does not fit the others, named
         print(f"aes-swarm launch: error: {exc}", file=sys.stderr)

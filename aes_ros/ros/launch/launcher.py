@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from aes_ros.report import progress
+from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch import preflight
 from aes_ros.ros.launch.events import Event, EventLog, fault_summary
@@ -68,6 +69,7 @@ from aes_ros.ros.launch.plan import (
     LaunchError,
     ProcessSpec,
     describe,
+    resolved_discovery,
     start_order,
     work_directory,
     write_layout,
@@ -176,11 +178,17 @@ class Launcher:
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
         self.events = EventLog(self.work_dir / "events.csv", self.say)
         self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
-        self.monitor = Monitor(n, cfg.poses_topic, wall_clock=not cfg.sim_time)
-        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        self.discovery = dds.plan(
+            resolved_discovery(cfg), n, dict(os.environ), cfg.discovery_server, cfg.discovery_port
+        )
         layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
-        order = start_order(cfg, scenario_file, robots_file, layout_file)
+        order = start_order(cfg, scenario_file, robots_file, layout_file, self.discovery)
         self._specs = order.by_name
+        self._start_discovery(order.discovery_server)
+        self.monitor = Monitor(
+            n, cfg.poses_topic, wall_clock=not cfg.sim_time, discovery=self.discovery
+        )
+        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
         if order.recorder is not None:
             self.recorder = self.procs.start(*order.recorder)
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
@@ -230,7 +238,36 @@ class Launcher:
         self.supervision = Supervision(
             self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time
         )
-        self.say(f"launch: {describe(cfg, len(order.robots))}; logs in {self.procs.log_dir}")
+        described = describe(cfg, len(order.robots), self.discovery)
+        self.say(f"launch: {described}; logs in {self.procs.log_dir}")
+
+    def _start_discovery(self, server: ProcessSpec | None) -> None:
+        """Point every process at the discovery server (starting it first if it is this
+        launch's: ``server``) or at none; the recorder as a super client, since it
+        subscribes to the topics it finds. Write the lines a shell needs for ``ros2``
+        commands to ``ros_env.sh`` (and print them, with a server)."""
+        found = self.discovery
+        caller = os.environ.get(dds.SERVER_VARIABLE)
+        if caller and (found.address is None or found.starts_server):
+            why = "simple discovery" if found.address is None else "this launch starts its own"
+            self.say(
+                f"launch: {dds.SERVER_VARIABLE}={caller} of the environment is not used "
+                f"({why}; --discovery-server {caller} would use that server)"
+            )
+        self.procs.env = found.client_environment(self.procs.env)
+        if found.address is not None:
+            self.procs.env_for["recorder"] = {dds.SUPER_CLIENT_VARIABLE: "true"}
+        if server is not None:
+            self.procs.start(*server).wait_for(dds.SERVER_READY, 30.0, self._stopping)
+        path = Path(self.config.out_dir or self.work_dir) / "ros_env.sh"
+        path.write_text(found.script(dict(os.environ)))
+        if found.address is not None:
+            where = "started here" if found.starts_server else "an existing one"
+            lines = "".join(f"\n  {line}" for line in found.shell_lines(dict(os.environ)))
+            self.say(
+                f"launch: discovery server {found.address} ({where}); ros2 commands on this "
+                f"swarm need (also in {path}):{lines}"
+            )
 
     def _stopping(self) -> bool:
         return self.stop_reason is not None

@@ -5,7 +5,9 @@ It runs in its own rclpy context, spun by the launcher between its other duties
 (:mod:`aes_ros.ros.cdr`: building N ``Pose`` objects per step was half of its CPU).
 Its DDS participant talks over UDP only: Fast DDS removes a participant's
 shared-memory files when it shuts down, so a launcher killed with SIGKILL would
-otherwise leave them behind (its children shut down cleanly when it dies).
+otherwise leave them behind (its children shut down cleanly when it dies). With a
+discovery server it is a plain client: what it asks of the graph (node names, the
+publishers of the poses it reads) a plain client learns (:mod:`aes_ros.ros.discovery`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from std_srvs.srv import SetBool, Trigger
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError
+from aes_ros.ros.discovery import Discovery
 from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import fastdds_environment
 from aes_ros.ros.qos import LATCHED
@@ -64,7 +67,11 @@ class Monitor:
     """
 
     def __init__(
-        self, n_robots: int, poses_topic: str = names.POSES, wall_clock: bool = False
+        self,
+        n_robots: int,
+        poses_topic: str = names.POSES,
+        wall_clock: bool = False,
+        discovery: Discovery | None = None,
     ) -> None:
         self.n = n_robots
         #: With wall-clock stamps (a real arena) times count from the first pose's
@@ -72,7 +79,7 @@ class Monitor:
         #: outputs; sim time counts from 0.
         self.origin: float | None = None if wall_clock else 0.0
         self.context = rclpy.Context()
-        with _udp_only():
+        with _udp_only((discovery or Discovery()).participant_variables()):
             # The launcher handles SIGINT/SIGTERM itself (it must stop the children first).
             rclpy.init(
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
@@ -337,21 +344,27 @@ def _publishers(node: Any, topic: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def _udp_only():
+def _udp_only(discovery: dict[str, str | None]):
     """While a participant is made, for it only (the children were given their
-    environment before): Fast DDS's built-in transports set to UDPv4, and the launch's
-    Fast DDS profile (:func:`aes_ros.ros.launch.processes.fastdds_environment`)."""
-    settings = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+    environment before): Fast DDS's built-in transports set to UDPv4, the launch's
+    Fast DDS profile (:func:`aes_ros.ros.launch.processes.fastdds_environment`) and the
+    ``discovery`` variables (None: removed)."""
+    settings: dict[str, str | None] = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
     settings.update(
         (k, v) for k, v in fastdds_environment(dict(os.environ)).items() if k not in os.environ
     )
+    settings.update(discovery)
     old = {key: os.environ.get(key) for key in settings}
-    os.environ.update(settings)
+    _set_environ(settings)
     try:
         yield
     finally:
-        for key, value in old.items():
-            if value is None:
-                del os.environ[key]
-            else:
-                os.environ[key] = value
+        _set_environ(old)
+
+
+def _set_environ(values: dict[str, str | None]) -> None:
+    for key, value in values.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value

@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.events import EventLog, LogEvents, exit_text
 from aes_ros.ros.launch.plan import LaunchError
@@ -44,6 +45,8 @@ def ready_signal(name: str) -> str:
         return names.recorder_receiving(names.POSES)
     if name == names.DASHBOARD_NODE:
         return names.DASHBOARD_READY
+    if name == dds.SERVER_PROCESS:
+        return dds.SERVER_READY
     return names.ROBOTS_READY
 
 
