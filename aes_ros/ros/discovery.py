@@ -10,7 +10,11 @@ the server relays to each client the endpoints on the topics that client uses.
 - The server is Fast DDS's ``fast-discovery-server`` (in the ``ros_fastrtps`` wheel),
   id 0, on one UDP port; :func:`serve` runs it (``python -m aes_ros.ros.discovery serve``):
   the wheel's binary does not find its own libraries, and the server talks UDP only, so
-  that a killed server leaves nothing in ``/dev/shm``.
+  that a killed server leaves nothing in ``/dev/shm``. Its lease is 2 s
+  (``fastdds_server_profile.xml``): a launch restarts a server that died only after
+  :data:`SERVER_RESTART_DELAY`, when its clients have forgotten it, else they would take
+  the new one for the old one and ignore it. Endpoints matched already keep talking
+  while there is no server (measured: 30 s without one); only new ones wait for it.
 - A process is pointed at it by ``ROS_DISCOVERY_SERVER=HOST:PORT`` in its environment
   (Fast DDS 2.14 turns a participant of simple discovery into a client then).
   ``ROS_SUPER_CLIENT=true`` makes it a *super client*: it learns of every endpoint the
@@ -61,6 +65,13 @@ SERVER_READY = "Server is running"
 SERVER_ID = 0
 #: The server program of the ``ros_fastrtps`` wheel.
 SERVER_PROGRAM = "fast-discovery-server"
+#: The server's Fast DDS profile: its lease, SERVER_LEASE [s] (fastdds_server_profile.xml
+#: says why), after which its clients forget a server that died.
+SERVER_PROFILE = Path(__file__).resolve().parent / "fastdds_server_profile.xml"
+SERVER_LEASE = 2.0
+#: Wall seconds before a server that died is started again: its lease and a margin, so
+#: that no client takes the new server for the old one.
+SERVER_RESTART_DELAY = SERVER_LEASE + 1.0
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -223,7 +234,7 @@ def server_program() -> str:
 def server_environment(env: dict[str, str], program: str) -> dict[str, str]:
     """``env`` for the server: the ``ros_fastrtps`` wheel's libraries on the library path
     (its binary's run path points elsewhere), UDP only (nothing left in /dev/shm when it
-    is killed), and no client variables."""
+    is killed) and no client variables."""
     dirs = []
     for key in ("platlib", "purelib"):
         libs = Path(sysconfig.get_paths()[key]) / "ros_fastrtps.libs"
@@ -243,9 +254,13 @@ def server_environment(env: dict[str, str], program: str) -> dict[str, str]:
 
 def serve(port: int, listen: str) -> None:
     """Become the discovery server (``exec``: the process is the server, its pid the
-    server's, so that a signal to it reaches the server)."""
+    server's, so that a signal to it reaches the server). Without a backup: the server's
+    ``-b`` (restore its state when restarted) crashed at the restart with these wheels
+    (a malloc assertion in Fast DDS 2.14.5); its short lease does the job instead
+    (:data:`SERVER_PROFILE`, given with ``-x``: without it the server takes Fast DDS's
+    built-in defaults, not the default profile of the environment)."""
     program = server_program()
-    argv = [program, "-i", str(SERVER_ID), "-l", listen, "-p", str(port)]
+    argv = [program, "-i", str(SERVER_ID), "-l", listen, "-p", str(port), "-x", str(SERVER_PROFILE)]
     os.execve(program, argv, server_environment(dict(os.environ), program))
 
 

@@ -5,18 +5,21 @@ except one short process to show the per-process environment)."""
 
 from __future__ import annotations
 
+import os
 import socket
 import sys
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
 from aes_ros import scenario
 from aes_ros.ros import discovery as dds
+from aes_ros.ros.launch.events import EventLog
 from aes_ros.ros.launch.plan import LaunchConfig, resolved_discovery, start_order
 from aes_ros.ros.launch.processes import ProcessSet
-from aes_ros.ros.launch.recovery import RestartCommands
-from aes_ros.ros.launch.supervision import ready_signal
+from aes_ros.ros.launch.recovery import Backoff, RestartCommands
+from aes_ros.ros.launch.supervision import Supervision, ready_signal
 
 LOCAL = {"ROS_DOMAIN_ID": "42", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
@@ -173,3 +176,49 @@ def test_a_process_gets_its_own_variables_at_every_start(tmp_path: Path) -> None
         procs.start(name, show).proc.wait(30)
     assert (tmp_path / "recorder.log").read_text().split() == ["true", "true"]
     assert (tmp_path / "robot_host_0.log").read_text().split() == ["false"]
+
+
+def test_the_server_forgets_quickly_and_comes_back_after_its_lease() -> None:
+    """Its profile makes it a server with a short lease; the launcher restarts it only once
+    every client has dropped it (a client that still holds it ignores what a new one
+    with the same GUID sends: new participants were never matched)."""
+    root = ET.parse(dds.SERVER_PROFILE).getroot()
+    ns = {"p": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    config = root.find(".//p:discovery_config", ns)
+    assert config.find("p:discoveryProtocol", ns).text == "SERVER"
+    lease = config.find("p:leaseDuration", ns)
+    seconds = int(lease.find("p:sec", ns).text) + int(lease.find("p:nanosec", ns).text) * 1e-9
+    assert seconds == dds.SERVER_LEASE < dds.SERVER_RESTART_DELAY
+
+
+def test_serve_becomes_the_server_with_its_profile(monkeypatch: pytest.MonkeyPatch) -> None:
+    became: list = []
+
+    def execve(program: str, argv: list[str], env: dict[str, str]) -> None:
+        became.append((program, argv, env))
+
+    monkeypatch.setattr(os, "execve", execve)
+    monkeypatch.setenv("ROS_DISCOVERY_SERVER", "10.9.9.9:1")
+    dds.serve(5000, "127.0.0.1")
+    ((program, argv, env),) = became
+    assert program == dds.server_program() and argv[0] == program
+    assert argv[1:] == ["-i", "0", "-l", "127.0.0.1", "-p", "5000", "-x", str(dds.SERVER_PROFILE)]
+    assert "ROS_DISCOVERY_SERVER" not in env and env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4"
+
+
+def test_a_dead_server_is_restarted_after_its_lease(tmp_path: Path) -> None:
+    procs = ProcessSet(tmp_path)
+    events = EventLog(tmp_path / "events.csv", lambda _line: None)
+    supervision = Supervision(
+        procs, events, "respawn", lambda _name: [], lambda: None,
+        backoff_for={dds.SERVER_PROCESS: Backoff(first=dds.SERVER_RESTART_DELAY)},
+    )  # fmt: skip
+    for name in (dds.SERVER_PROCESS, "robot_host_0"):
+        procs.start(name, [sys.executable, "-c", "pass"]).proc.wait(30)
+    supervision.check()
+    actions = {e.process: e.action for e in events.events}
+    assert actions == {
+        dds.SERVER_PROCESS: f"restart in {dds.SERVER_RESTART_DELAY:g} s",
+        "robot_host_0": "restart in 0.5 s",
+    }
+    events.close()

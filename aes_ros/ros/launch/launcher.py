@@ -78,7 +78,7 @@ from aes_ros.ros.launch.plan import (
 )
 from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
 from aes_ros.ros.launch.reaper import start_reaper
-from aes_ros.ros.launch.recovery import RestartCommands
+from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.ros.spin import stop_signals
 from aes_ros.run_writer import RunWriter
@@ -236,8 +236,10 @@ class Launcher:
             self._specs, self.monitor, state, cfg.record, n, images_rate=cfg.record_images
         )
         self.supervision = Supervision(
-            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time
-        )
+            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time,
+            # a server that died comes back once its clients have forgotten it
+            backoff_for={dds.SERVER_PROCESS: Backoff(first=dds.SERVER_RESTART_DELAY)},
+        )  # fmt: skip
         described = describe(cfg, len(order.robots), self.discovery)
         self.say(f"launch: {described}; logs in {self.procs.log_dir}")
 
