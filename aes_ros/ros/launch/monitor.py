@@ -115,6 +115,7 @@ class Monitor:
         self.last_unmoved = 0
         self._move_checked = 0
         self._swarm_checked_at = 0.0
+        self._clients: dict[tuple[Any, str], Any] = {}
         # rclpy's EventsExecutor, as in every node: the SingleThreadedExecutor rebuilt its
         # wait set in Python at each spin_once, two thirds of a launcher's samples in
         # py-spy; launcher at 100 robots, 50 Hz: 11-13 % -> 5-6 % of a core (bench_ros).
@@ -302,22 +303,27 @@ class Monitor:
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float) -> Any:
         """Call service ``name`` and return its response; LaunchError if nobody offers
-        it or it does not answer within ``timeout`` s (spinning meanwhile)."""
-        client = self.node.create_client(srv_type, name)
-        try:
-            deadline = time.monotonic() + timeout
-            while not client.service_is_ready():
-                if time.monotonic() > deadline:
-                    raise LaunchError(f"nobody offers {name} within {timeout:.0f} s")
-                self.spin_once(0.05)
-            future = client.call_async(request)
-            while not future.done():
-                if time.monotonic() > deadline:
-                    raise LaunchError(f"{name} did not answer within {timeout:.0f} s")
-                self.spin_once(0.05)
-            return future.result()
-        finally:
-            self.node.destroy_client(client)
+        it or it does not answer within ``timeout`` s (spinning meanwhile).
+
+        One client per service, kept: through a discovery server, a client destroyed and
+        made again for the same service in one participant got no answer to one call
+        in three to ten (Fast DDS 2.14: the server never matched the new client's reply
+        reader; the launch's unpause of the bridge hung so), a kept client to none."""
+        client = self._clients.get((srv_type, name))
+        if client is None:
+            client = self._clients[(srv_type, name)] = self.node.create_client(srv_type, name)
+        deadline = time.monotonic() + timeout
+        while not client.service_is_ready():
+            if time.monotonic() > deadline:
+                raise LaunchError(f"nobody offers {name} within {timeout:.0f} s")
+            self.spin_once(0.05)
+        future = client.call_async(request)
+        while not future.done():
+            if time.monotonic() > deadline:
+                client.remove_pending_request(future)
+                raise LaunchError(f"{name} did not answer within {timeout:.0f} s")
+            self.spin_once(0.05)
+        return future.result()
 
     def pause_bridge(self, paused: bool, timeout: float) -> None:
         """Call the bridge's ``/sim/pause``."""
