@@ -370,7 +370,11 @@ class Launcher:
         if self._stopped:
             return self.killed
         self._stopped = True
-        last = [c for c in self.procs.children if c.name == "recorder"]
+        # The recorder after the others (the bag complete), and the discovery server: the
+        # others' goodbyes go through it, without which their writers wait for
+        # acknowledgements from readers that are gone (3 s each at the end).
+        last = [c for c in self.procs.children if c.name in ("recorder", dds.SERVER_PROCESS)]
+        recorders = [c for c in last if c.name == "recorder"]
         self.killed = self.procs.stop_all(self.config.stop_timeout, last=last)
         if self.monitor is not None:
             self.monitor.close()
@@ -378,7 +382,7 @@ class Launcher:
             os.close(self._reaper_pipe)  # the reaper finds nothing left and exits
             self._reaper_pipe = None
         if self.recorder is not None:
-            self.say(f"launch: {last[-1].last_line() or 'recorder wrote nothing'}")
+            self.say(f"launch: {recorders[-1].last_line() or 'recorder wrote nothing'}")
         self.exit_codes = self.procs.exit_codes()
         self.say(f"launch: {self.procs.stop_summary(self.killed)}")
         return self.killed
