@@ -7,6 +7,7 @@
   ``/swarm/cmd``; the recorder, a super client, finds every topic to record; a plain
   client (what the launcher's monitor and the dashboard are) sees every node, though of
   the topics only those it uses;
+- ``scripts/start_swarm.sh -d server``: its server first, its printed lines work;
 - the server SIGKILLed mid-run: the launcher respawns it on its port, the swarm keeps
   moving meanwhile (matched endpoints keep talking); then a robot host SIGKILLed: the
   respawned host's new endpoints match through the respawned server and its robots move
@@ -19,6 +20,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -38,6 +40,8 @@ from aes_ros.ros.bag import read_bag
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.qos import COMMAND
 
+REPO = Path(__file__).resolve().parents[2]
+BIN = Path(sys.executable).parent
 N = 9
 ROBOT_NODES = [f"{names.robot_namespace(i)}/{names.ROBOT_NODE}" for i in range(N)]
 #: The one robot host of layout single (its node is /robot_host).
@@ -211,4 +215,35 @@ def test_a_killed_server_is_respawned_and_new_endpoints_match_through_it(
     log = spawn.log(launcher).read_text()
     assert "2 faults" in log and "2 recovered" in log, log[-2000:]
     assert events_of(out, dds.SERVER_PROCESS)[:2] == ["died", "restarted"]
+    assert_no_orphans(ros_env)
+
+
+def test_start_swarm_script_runs_through_a_server_it_starts(spawn, ros_env, tmp_path) -> None:
+    """scripts/start_swarm.sh -d server: the server first, the lines for a shell printed;
+    with them a probe sees every node and the robots move; Ctrl-C stops all of it."""
+    n = 4
+    spawn.env = {**spawn.env, "PATH": f"{BIN}{os.pathsep}{ros_env.get('PATH', '')}"}
+    script = spawn.start(
+        "bash", str(REPO / "scripts" / "start_swarm.sh"), "-s", "linear", "-n", str(n),
+        "-d", "server", name="start_swarm",
+    )  # fmt: skip
+    log = spawn.log(script)
+    assert wait_for(lambda: "swarm running" in log.read_text(), 30.0), log.read_text()
+    starts = [line for line in log.read_text().splitlines() if line.startswith("starting ")]
+    assert starts[0].startswith("starting discovery_server:"), starts
+    lines = [line.strip() for line in log.read_text().splitlines() if "export ROS_" in line]
+    (tmp_path / "ros_env.sh").write_text("\n".join(lines) + "\n")
+    with shell_environment(tmp_path / "ros_env.sh") as variables:
+        assert variables["ROS_DISCOVERY_SERVER"].startswith("127.0.0.1:")
+        probe = Probe()
+        try:
+            probe.sample_poses(n)
+            t0 = probe.wait_all_moving(60.0)
+            probe.wait_sim(t0 + 1.0)
+            assert probe.motion(t0, probe.now).min() > 1e-3
+            assert {"sim_bridge", "supervisor", "robot_host_0"} <= set(probe.node.get_node_names())
+        finally:
+            probe.close()
+    os.killpg(script.pid, signal.SIGINT)
+    assert script.wait(30) == 0
     assert_no_orphans(ros_env)
