@@ -7,7 +7,9 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    process reads the same values;
 2. starts, each in its own process group with the caller's ROS environment
    (:mod:`aes_ros.ros.launch.processes`), in the order of
-   :func:`~aes_ros.ros.launch.plan.start_order`: the recorder (with ``record``),
+   :func:`~aes_ros.ros.launch.plan.start_order`: with a discovery server of its own
+   (``discovery``; :mod:`aes_ros.ros.discovery`) that server, whose address every other
+   process gets and which ``ros_env.sh`` gives a user's shell; the recorder (with ``record``),
    ``aes-sim-bridge``, with ``--tracking camera`` the overhead camera and the tracker,
    ``aes-supervisor`` and the robots in the chosen layout; all at once, except in
    lockstep or when recording, where the robots start only after the first poses
