@@ -7,6 +7,7 @@
 #   scripts/start_swarm.sh                     # 16 robots, combined setup, one robot host
 #   scripts/start_swarm.sh -s linear -n 36 -k 1
 #   scripts/start_swarm.sh -s my_scenario.yaml -x odom -m dynamic -g
+#   scripts/start_swarm.sh -n 400 -d server     # through a Fast DDS discovery server
 #
 # Options:
 #   -s SETUP   linear | rotation | combined (default) or a scenario YAML file
@@ -18,16 +19,22 @@
 #   -r X       real-time factor (default 1; 0 = as fast as possible)
 #   -e SEED    seed of the initial state (default 0)
 #   -g         pybullet GUI
+#   -d MODE    discovery: auto (default: a server above the robot count of
+#              `aes-swarm launch --discovery auto`, or with -a) | simple | server
+#              (starts fast-discovery-server first, on a free UDP port, and points every
+#              process at it; prints the lines a shell needs for ros2 commands)
+#   -a H:P     use this running discovery server (id 0, e.g. on another host)
 #
-# While it runs, in another shell (same ROS_DOMAIN_ID):
+# While it runs, in another shell (same ROS_DOMAIN_ID; with a discovery server, the
+# lines it printed first):
 #   scripts/steer.sh north               # or: aes-swarm steer --direction 0 1
 #   ros2 topic echo /swarm/alignment     # with a full ROS 2 install
 #   ros2 param set /supervisor rotation_rate 0.5
 set -euo pipefail
 
 SETUP=combined ROBOTS=16 HOSTS=auto SOURCE=poses MODE=kinematic
-RTF=1.0 SEED=0 GUI=false
-while getopts "s:n:k:x:m:r:e:gh" opt; do
+RTF=1.0 SEED=0 GUI=false DISCOVERY=auto SERVER=""
+while getopts "s:n:k:x:m:r:e:d:a:gh" opt; do
     case $opt in
         s) SETUP=$OPTARG ;;
         n) ROBOTS=$OPTARG ;;
@@ -37,9 +44,12 @@ while getopts "s:n:k:x:m:r:e:gh" opt; do
         r) RTF=$OPTARG ;;
         e) SEED=$OPTARG ;;
         g) GUI=true ;;
+        d) DISCOVERY=$OPTARG ;;
+        a) SERVER=$OPTARG ;;
         h) sed -n '2,/^set -euo/p' "$0" | sed '$d; s/^# \{0,1\}//'; exit 0 ;;
         *) echo "usage: $0 [-s setup|file] [-n robots] [-k hosts] [-x poses|odom]" \
-                "[-m kinematic|dynamic] [-r rtf] [-e seed] [-g]" >&2; exit 2 ;;
+                "[-m kinematic|dynamic] [-r rtf] [-e seed] [-g] [-d auto|simple|server]" \
+                "[-a host:port]" >&2; exit 2 ;;
     esac
 done
 case $ROBOTS in ''|*[!0-9]*) echo "$0: -n: need a whole number, got '$ROBOTS'" >&2; exit 2 ;; esac
@@ -48,6 +58,10 @@ case $SOURCE in poses|odom) ;; *) echo "$0: -x: poses or odom, got '$SOURCE'" >&
 case $MODE in kinematic|dynamic) ;; *) echo "$0: -m: kinematic or dynamic, got '$MODE'" >&2; exit 2 ;; esac
 case $RTF in *[!0-9.]*|'') echo "$0: -r: need a number >= 0, got '$RTF'" >&2; exit 2 ;; esac
 case $RTF in *.*) ;; *) RTF=$RTF.0 ;; esac  # a ROS double needs a decimal point
+case $DISCOVERY in auto|simple|server) ;; *) echo "$0: -d: auto, simple or server, got '$DISCOVERY'" >&2; exit 2 ;; esac
+if [ -n "$SERVER" ] && [ "$DISCOVERY" = simple ]; then
+    echo "$0: -a: simple discovery uses no server" >&2; exit 2
+fi
 
 # Console scripts of the environment this script's aes-swarm lives in, else PATH.
 BIN=${AES_BIN:-$(dirname "$(command -v aes-sim-bridge || echo ./aes-sim-bridge)")}
@@ -84,8 +98,23 @@ print(auto_layout($ROBOTS, scenario.load('$SETUP').dt))" 2>/dev/null || true)
 fi
 [ "$HOSTS" -le "$ROBOTS" ] || HOSTS=$ROBOTS
 
+# Discovery as `aes-swarm launch --discovery` decides it (aes_ros.ros.discovery).
+if [ -n "$SERVER" ]; then
+    "$BIN/python" -c "import sys; from aes_ros.ros.discovery import parse_address; \
+parse_address(sys.argv[1])" "$SERVER" 2>/dev/null \
+        || { echo "$0: -a: expected HOST:PORT, got '$SERVER'" >&2; exit 2; }
+fi
+DISCOVERY=$("$BIN/python" -c "import sys; from aes_ros.ros.discovery import resolved_mode; \
+print(resolved_mode(sys.argv[1], int(sys.argv[2]), sys.argv[3] or None))" \
+    "$DISCOVERY" "$ROBOTS" "$SERVER")
+if [ -n "${ROS_DISCOVERY_SERVER:-}" ] && [ "$ROS_DISCOVERY_SERVER" != "$SERVER" ]; then
+    echo "note: ROS_DISCOVERY_SERVER=$ROS_DISCOVERY_SERVER of the environment is not used" \
+        "(-a $ROS_DISCOVERY_SERVER would use that server)"
+fi
+unset ROS_DISCOVERY_SERVER ROS_SUPER_CLIENT
+
 set -m  # each background job in its own process group: Ctrl-C reaches only this script
-PIDS=()
+PIDS=() SERVER_PID=""
 start() {  # name, command...
     local name=$1; shift
     echo "starting $name: $*"
@@ -96,11 +125,21 @@ start() {  # name, command...
 stop_all() {
     trap - INT TERM
     echo "stopping ${#PIDS[@]} processes"
-    for pid in "${PIDS[@]}"; do kill -INT "$pid" 2>/dev/null || true; done
+    # The discovery server last: the others' goodbyes go through it.
+    for pid in "${PIDS[@]}"; do
+        [ "$pid" = "$SERVER_PID" ] || kill -INT "$pid" 2>/dev/null || true
+    done
     for _ in $(seq 100); do  # up to 10 s for a clean shutdown
         alive=0
-        for pid in "${PIDS[@]}"; do kill -0 "$pid" 2>/dev/null && alive=1; done
+        for pid in "${PIDS[@]}"; do
+            [ "$pid" = "$SERVER_PID" ] || { kill -0 "$pid" 2>/dev/null && alive=1; }
+        done
         [ $alive -eq 0 ] && break
+        sleep 0.1
+    done
+    [ -z "$SERVER_PID" ] || kill -INT "$SERVER_PID" 2>/dev/null || true
+    for _ in $(seq 20); do
+        { [ -z "$SERVER_PID" ] || ! kill -0 "$SERVER_PID" 2>/dev/null; } && break
         sleep 0.1
     done
     for pid in "${PIDS[@]}"; do
@@ -114,6 +153,23 @@ stop_all() {
     [ -x "$BIN/fastdds" ] && "$BIN/fastdds" shm clean >/dev/null 2>&1 || true
 }
 trap 'stop_all; exit 0' INT TERM
+
+if [ "$DISCOVERY" = server ]; then
+    ENV_ARGS=()
+    if [ -z "$SERVER" ]; then  # our own, first: on loopback when discovery stays on this host
+        LISTEN=0.0.0.0
+        case ${ROS_AUTOMATIC_DISCOVERY_RANGE:-} in [Ll][Oo][Cc][Aa][Ll][Hh][Oo][Ss][Tt]) LISTEN=127.0.0.1 ;; esac
+        PORT=$("$BIN/python" -m aes_ros.ros.discovery port --listen "$LISTEN")
+        SERVER=127.0.0.1:$PORT
+        ENV_ARGS=(--listen "$LISTEN")
+        start discovery_server "$BIN/python" -m aes_ros.ros.discovery serve --port "$PORT" \
+            --listen "$LISTEN"
+        SERVER_PID=${PIDS[-1]}
+    fi
+    export ROS_DISCOVERY_SERVER=$SERVER  # every process below is a client of it
+    echo "discovery server $SERVER; ros2 commands on this swarm need:"
+    "$BIN/python" -m aes_ros.ros.discovery env "$SERVER" "${ENV_ARGS[@]}" | sed 's/^/  /'
+fi
 
 COMMON=(-p "scenario:=$SETUP" -p "num_robots:=$NUM")
 start sim_bridge "$BIN/aes-sim-bridge" --ros-args "${COMMON[@]}" -p "seed:=$SEED" \

@@ -7,6 +7,7 @@ Examples::
     aes-swarm launch --setup linear --robots 16 --lockstep --real-time-factor 0 --out out/lin
     aes-swarm launch --setup combined --robots 100 --duration 0 --out out/long \
         --record out/long/run.mcap --bag-split 10min --bag-keep 12
+    aes-swarm launch --robots 1000 --discovery server --out out/big   # . out/big/ros_env.sh
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
@@ -23,6 +24,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
+from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_ABOVE, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
 
@@ -93,6 +95,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "0: any free port) and print its URL",
     )  # fmt: skip
     p.add_argument(
+        "--discovery", choices=DISCOVERY_MODES, default="auto",
+        help="how the processes find each other: Fast DDS's simple discovery, or a "
+        "discovery server (started as one more process of the launch unless "
+        "--discovery-server is given; ros2 commands then need the environment it prints, "
+        "also in OUT/ros_env.sh); auto (default): a server with --discovery-server or "
+        "--discovery-port"
+        + (f" or above {DISCOVERY_SERVER_ABOVE} robots" if DISCOVERY_SERVER_ABOVE else ""),
+    )  # fmt: skip
+    p.add_argument(
+        "--discovery-server", type=_address, default=None, metavar="HOST:PORT",
+        help="use this running discovery server (id 0, e.g. on another host) instead of "
+        "starting one",
+    )  # fmt: skip
+    p.add_argument(
+        "--discovery-port", type=number_type(int, 1, 65535), default=None, metavar="PORT",
+        help="the UDP port of the discovery server the launch starts (default: a free one)",
+    )  # fmt: skip
+    p.add_argument(
         "--tracking", choices=TRACKING, default="none",
         help="camera: the robots take their neighbours' positions from a simulated overhead "
         "camera and the ArUco tracker; the bridge's exact poses go to /sim/ground_truth/poses "
@@ -131,6 +151,15 @@ def _bag_split(text: str) -> str:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r}: need {SPLIT_FORMS}") from None
     return text.strip()
+
+
+def _address(text: str) -> str:
+    """``HOST:PORT`` of a discovery server (:func:`aes_ros.ros.discovery.parse_address`)."""
+    try:
+        host, port = parse_address(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return f"{host}:{port}"
 
 
 def _pixels(text: str) -> tuple[int, int]:
@@ -175,6 +204,9 @@ def run(args: argparse.Namespace) -> int:
             bag_keep=args.bag_keep,
             camera_source=args.camera_source,
             calibration=args.calibration,
+            discovery=args.discovery,
+            discovery_server=args.discovery_server,
+            discovery_port=args.discovery_port,
         )
     except ValueError as exc:  # an option that does not fit the others, named
         print(f"aes-swarm launch: error: {exc}", file=sys.stderr)

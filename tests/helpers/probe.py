@@ -52,7 +52,12 @@ class Probe:
     sampled.
     """
 
-    def __init__(self, name: str = "test_probe") -> None:
+    def __init__(self, name: str = "test_probe", keep_clients: bool = False) -> None:
+        #: One service client per service, kept (else one per call): through a discovery
+        #: server a client made again for the same service sometimes got no answer
+        #: (:meth:`aes_ros.ros.launch.monitor.Monitor.call`).
+        self.keep_clients = keep_clients
+        self._clients: dict[tuple[type, str], Any] = {}
         self.context = rclpy.Context()
         rclpy.init(args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO)
         self.node = rclpy.create_node(name, context=self.context)
@@ -161,14 +166,17 @@ class Probe:
     def call(self, srv_type: type, name: str, request: Any, timeout: float = TIMEOUT) -> Any:
         """Call service ``name``; fail the test if it is not offered or does not
         answer within ``timeout`` s."""
-        client = self.node.create_client(srv_type, name)
+        client = self._clients.get((srv_type, name)) or self.node.create_client(srv_type, name)
+        if self.keep_clients:
+            self._clients[(srv_type, name)] = client
         try:
             self.wait(client.service_is_ready, timeout, f"service {name}")
             future = client.call_async(request)
             self.wait(future.done, timeout, f"answer of {name}")
             return future.result()
         finally:
-            self.node.destroy_client(client)
+            if not self.keep_clients:
+                self.node.destroy_client(client)
 
     def set_parameters(self, node: str, params: Sequence[Parameter]) -> list:
         """SetParameters on ``node``: one result (``successful``, ``reason``) each."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import shlex
 import subprocess
 import time
 from collections.abc import Callable, Iterator
@@ -57,6 +58,52 @@ def ros_variables(domain: int) -> dict[str, str]:
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
         "PYTHONUNBUFFERED": "1",
     }
+
+
+def shell_variables(script: Path) -> dict[str, str | None]:
+    """What sourcing ``script`` (``export NAME=value`` and ``unset NAME …`` lines, as in
+    a launch's ``ros_env.sh``) does to the environment (None: unset)."""
+    out: dict[str, str | None] = {}
+    for line in Path(script).read_text().splitlines():
+        words = shlex.split(line, comments=True)
+        if words[:1] == ["export"]:
+            out.update(word.split("=", 1) for word in words[1:])  # type: ignore[misc]
+        elif words[:1] == ["unset"]:
+            out.update((name, None) for name in words[1:])
+    return out
+
+
+@contextlib.contextmanager
+def shell_environment(script: Path) -> Iterator[dict[str, str | None]]:
+    """``os.environ`` as after sourcing ``script`` for the block (rclpy contexts made
+    in it use it); restored after, and Fast DDS made to forget the discovery server:
+    it keeps the last ``ROS_DISCOVERY_SERVER`` it read in a process and would make
+    every later participant of the test process a client of that server
+    (:mod:`aes_ros.ros.discovery`)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    changes = shell_variables(script)
+    old = {name: os.environ.get(name) for name in changes}
+    try:
+        _set_environ(changes)
+        yield changes
+    finally:
+        _set_environ({"ROS_DISCOVERY_SERVER": "", "ROS_SUPER_CLIENT": None})
+        context = rclpy.Context()  # a participant (made with its first node) reads the ""
+        rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("forget_discovery_server", context=context)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        _set_environ({"ROS_DISCOVERY_SERVER": None, **old})
+
+
+def _set_environ(values: dict[str, str | None]) -> None:
+    for name, value in values.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 0.05) -> bool:

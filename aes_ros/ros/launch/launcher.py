@@ -7,7 +7,9 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    process reads the same values;
 2. starts, each in its own process group with the caller's ROS environment
    (:mod:`aes_ros.ros.launch.processes`), in the order of
-   :func:`~aes_ros.ros.launch.plan.start_order`: the recorder (with ``record``),
+   :func:`~aes_ros.ros.launch.plan.start_order`: with a discovery server of its own
+   (``discovery``; :mod:`aes_ros.ros.discovery`) that server, whose address every other
+   process gets and which ``ros_env.sh`` gives a user's shell; the recorder (with ``record``),
    ``aes-sim-bridge``, with ``--tracking camera`` the overhead camera and the tracker,
    ``aes-supervisor`` and the robots in the chosen layout; all at once, except in
    lockstep or when recording, where the robots start only after the first poses
@@ -60,6 +62,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from aes_ros.report import progress
+from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch import preflight
 from aes_ros.ros.launch.events import Event, EventLog, fault_summary
@@ -69,6 +72,7 @@ from aes_ros.ros.launch.plan import (
     LaunchError,
     ProcessSpec,
     describe,
+    resolved_discovery,
     start_order,
     work_directory,
     write_layout,
@@ -77,7 +81,7 @@ from aes_ros.ros.launch.plan import (
 )
 from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
 from aes_ros.ros.launch.reaper import start_reaper
-from aes_ros.ros.launch.recovery import RestartCommands
+from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.ros.spin import stop_signals
 from aes_ros.run_writer import RunWriter
@@ -177,11 +181,17 @@ class Launcher:
         robots_file = write_robot_params(cfg, self.work_dir / "robots.yaml", scenario_file)
         self.events = EventLog(self.work_dir / "events.csv", self.say)
         self._reaper_pipe = start_reaper(self.procs.pid_file, self.procs.log_dir / "reaper.log")
-        self.monitor = Monitor(n, cfg.poses_topic, wall_clock=not cfg.sim_time)
-        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        self.discovery = dds.plan(
+            resolved_discovery(cfg), n, dict(os.environ), cfg.discovery_server, cfg.discovery_port
+        )
         layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
-        order = start_order(cfg, scenario_file, robots_file, layout_file)
+        order = start_order(cfg, scenario_file, robots_file, layout_file, self.discovery)
         self._specs = order.by_name
+        self._start_discovery(order.discovery_server)
+        self.monitor = Monitor(
+            n, cfg.poses_topic, wall_clock=not cfg.sim_time, discovery=self.discovery
+        )
+        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
         if order.recorder is not None:
             self.recorder = self.procs.start(*order.recorder)
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
@@ -229,9 +239,40 @@ class Launcher:
             self._specs, self.monitor, state, cfg.record, n, images_rate=cfg.record_images
         )
         self.supervision = Supervision(
-            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time
-        )
-        self.say(f"launch: {describe(cfg, len(order.robots))}; logs in {self.procs.log_dir}")
+            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time,
+            # a server that died comes back once its clients have forgotten it
+            backoff_for={dds.SERVER_PROCESS: Backoff(first=dds.SERVER_RESTART_DELAY)},
+        )  # fmt: skip
+        described = describe(cfg, len(order.robots), self.discovery)
+        self.say(f"launch: {described}; logs in {self.procs.log_dir}")
+
+    def _start_discovery(self, server: ProcessSpec | None) -> None:
+        """Point every process at the discovery server (starting it first if it is this
+        launch's: ``server``) or at none; the recorder as a super client, since it
+        subscribes to the topics it finds. Write the lines a shell needs for ``ros2``
+        commands to ``ros_env.sh`` (and print them, with a server)."""
+        found = self.discovery
+        caller = os.environ.get(dds.SERVER_VARIABLE)
+        if caller and (found.address is None or found.starts_server):
+            why = "simple discovery" if found.address is None else "this launch starts its own"
+            self.say(
+                f"launch: {dds.SERVER_VARIABLE}={caller} of the environment is not used "
+                f"({why}; --discovery-server {caller} would use that server)"
+            )
+        self.procs.env = found.client_environment(self.procs.env)
+        if found.address is not None:
+            self.procs.env_for["recorder"] = {dds.SUPER_CLIENT_VARIABLE: "true"}
+        if server is not None:
+            self.procs.start(*server).wait_for(dds.SERVER_READY, 30.0, self._stopping)
+        path = Path(self.config.out_dir or self.work_dir) / "ros_env.sh"
+        path.write_text(found.script(dict(os.environ)))
+        if found.address is not None:
+            where = "started here" if found.starts_server else "an existing one"
+            lines = "".join(f"\n  {line}" for line in found.shell_lines(dict(os.environ)))
+            self.say(
+                f"launch: discovery server {found.address} ({where}); ros2 commands on this "
+                f"swarm need (also in {path}):{lines}"
+            )
 
     def _stopping(self) -> bool:
         return self.stop_reason is not None
@@ -332,7 +373,11 @@ class Launcher:
         if self._stopped:
             return self.killed
         self._stopped = True
-        last = [c for c in self.procs.children if c.name == "recorder"]
+        # The recorder after the others (the bag complete), and the discovery server: the
+        # others' goodbyes go through it, without which their writers wait for
+        # acknowledgements from readers that are gone (3 s each at the end).
+        last = [c for c in self.procs.children if c.name in ("recorder", dds.SERVER_PROCESS)]
+        recorders = [c for c in last if c.name == "recorder"]
         self.killed = self.procs.stop_all(self.config.stop_timeout, last=last)
         if self.monitor is not None:
             self.monitor.close()
@@ -340,7 +385,7 @@ class Launcher:
             os.close(self._reaper_pipe)  # the reaper finds nothing left and exits
             self._reaper_pipe = None
         if self.recorder is not None:
-            self.say(f"launch: {last[-1].last_line() or 'recorder wrote nothing'}")
+            self.say(f"launch: {recorders[-1].last_line() or 'recorder wrote nothing'}")
         self.exit_codes = self.procs.exit_codes()
         self.say(f"launch: {self.procs.stop_summary(self.killed)}")
         return self.killed

@@ -5,7 +5,9 @@ It runs in its own rclpy context, spun by the launcher between its other duties
 (:mod:`aes_ros.ros.cdr`: building N ``Pose`` objects per step was half of its CPU).
 Its DDS participant talks over UDP only: Fast DDS removes a participant's
 shared-memory files when it shuts down, so a launcher killed with SIGKILL would
-otherwise leave them behind (its children shut down cleanly when it dies).
+otherwise leave them behind (its children shut down cleanly when it dies). With a
+discovery server it is a plain client: what it asks of the graph (node names, the
+publishers of the poses it reads) a plain client learns (:mod:`aes_ros.ros.discovery`).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from std_srvs.srv import SetBool, Trigger
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError
+from aes_ros.ros.discovery import Discovery
 from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import fastdds_environment
 from aes_ros.ros.qos import LATCHED
@@ -64,7 +67,11 @@ class Monitor:
     """
 
     def __init__(
-        self, n_robots: int, poses_topic: str = names.POSES, wall_clock: bool = False
+        self,
+        n_robots: int,
+        poses_topic: str = names.POSES,
+        wall_clock: bool = False,
+        discovery: Discovery | None = None,
     ) -> None:
         self.n = n_robots
         #: With wall-clock stamps (a real arena) times count from the first pose's
@@ -72,7 +79,7 @@ class Monitor:
         #: outputs; sim time counts from 0.
         self.origin: float | None = None if wall_clock else 0.0
         self.context = rclpy.Context()
-        with _udp_only():
+        with _udp_only((discovery or Discovery()).participant_variables()):
             # The launcher handles SIGINT/SIGTERM itself (it must stop the children first).
             rclpy.init(
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
@@ -108,6 +115,7 @@ class Monitor:
         self.last_unmoved = 0
         self._move_checked = 0
         self._swarm_checked_at = 0.0
+        self._clients: dict[tuple[Any, str], Any] = {}
         # rclpy's EventsExecutor, as in every node: the SingleThreadedExecutor rebuilt its
         # wait set in Python at each spin_once, two thirds of a launcher's samples in
         # py-spy; launcher at 100 robots, 50 Hz: 11-13 % -> 5-6 % of a core (bench_ros).
@@ -295,22 +303,27 @@ class Monitor:
 
     def call(self, srv_type: Any, name: str, request: Any, timeout: float) -> Any:
         """Call service ``name`` and return its response; LaunchError if nobody offers
-        it or it does not answer within ``timeout`` s (spinning meanwhile)."""
-        client = self.node.create_client(srv_type, name)
-        try:
-            deadline = time.monotonic() + timeout
-            while not client.service_is_ready():
-                if time.monotonic() > deadline:
-                    raise LaunchError(f"nobody offers {name} within {timeout:.0f} s")
-                self.spin_once(0.05)
-            future = client.call_async(request)
-            while not future.done():
-                if time.monotonic() > deadline:
-                    raise LaunchError(f"{name} did not answer within {timeout:.0f} s")
-                self.spin_once(0.05)
-            return future.result()
-        finally:
-            self.node.destroy_client(client)
+        it or it does not answer within ``timeout`` s (spinning meanwhile).
+
+        One client per service, kept: through a discovery server, a client destroyed and
+        made again for the same service in one participant got no answer to one call
+        in three to ten (Fast DDS 2.14: the server never matched the new client's reply
+        reader; the launch's unpause of the bridge hung so), a kept client to none."""
+        client = self._clients.get((srv_type, name))
+        if client is None:
+            client = self._clients[(srv_type, name)] = self.node.create_client(srv_type, name)
+        deadline = time.monotonic() + timeout
+        while not client.service_is_ready():
+            if time.monotonic() > deadline:
+                raise LaunchError(f"nobody offers {name} within {timeout:.0f} s")
+            self.spin_once(0.05)
+        future = client.call_async(request)
+        while not future.done():
+            if time.monotonic() > deadline:
+                client.remove_pending_request(future)
+                raise LaunchError(f"{name} did not answer within {timeout:.0f} s")
+            self.spin_once(0.05)
+        return future.result()
 
     def pause_bridge(self, paused: bool, timeout: float) -> None:
         """Call the bridge's ``/sim/pause``."""
@@ -337,21 +350,27 @@ def _publishers(node: Any, topic: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def _udp_only():
+def _udp_only(discovery: dict[str, str | None]):
     """While a participant is made, for it only (the children were given their
-    environment before): Fast DDS's built-in transports set to UDPv4, and the launch's
-    Fast DDS profile (:func:`aes_ros.ros.launch.processes.fastdds_environment`)."""
-    settings = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
+    environment before): Fast DDS's built-in transports set to UDPv4, the launch's
+    Fast DDS profile (:func:`aes_ros.ros.launch.processes.fastdds_environment`) and the
+    ``discovery`` variables (None: removed)."""
+    settings: dict[str, str | None] = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
     settings.update(
         (k, v) for k, v in fastdds_environment(dict(os.environ)).items() if k not in os.environ
     )
+    settings.update(discovery)
     old = {key: os.environ.get(key) for key in settings}
-    os.environ.update(settings)
+    _set_environ(settings)
     try:
         yield
     finally:
-        for key, value in old.items():
-            if value is None:
-                del os.environ[key]
-            else:
-                os.environ[key] = value
+        _set_environ(old)
+
+
+def _set_environ(values: dict[str, str | None]) -> None:
+    for key, value in values.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value

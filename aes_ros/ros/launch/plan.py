@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from aes_ros.model import GAIN_FIELDS
+from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import SPLIT_FORMS, parse_split
 from aes_ros.ros.parameters import LIMIT_NAMES
@@ -82,6 +83,12 @@ class LaunchConfig:
         simulated camera, every node on wall-clock time, the tracker reading
         ``camera_source`` (a device or a video file) with ``calibration`` (a file of
         ``aes-swarm calibrate``); needs ``tracking="camera"``.
+    discovery : ``simple`` (Fast DDS's default), ``server`` (the processes are clients
+        of a discovery server; :mod:`aes_ros.ros.discovery`) or ``auto`` (a server above
+        :data:`~aes_ros.ros.discovery.DISCOVERY_SERVER_ABOVE` robots or with
+        ``discovery_server``). discovery_server : ``HOST:PORT`` of an existing server to
+        use (e.g. on another host); without it a server mode launch starts its own, on
+        ``discovery_port`` (None: a free UDP port).
     """
 
     scenario: Scenario
@@ -116,6 +123,9 @@ class LaunchConfig:
     bag_keep: int | None = None
     camera_source: str | None = None
     calibration: Path | None = None
+    discovery: str = "auto"
+    discovery_server: str | None = None
+    discovery_port: int | None = None
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -148,6 +158,33 @@ class LaunchConfig:
                 "not with --tracking camera (a camera frame is not a control step)",
             ),
             ("on_failure", self.on_failure in ON_FAILURE, _one_of(ON_FAILURE)),
+            (
+                "discovery",
+                self.discovery in dds.DISCOVERY_MODES,
+                _one_of(dds.DISCOVERY_MODES),
+            ),
+            (
+                "discovery_server",
+                self.discovery_server is None or _is_address(self.discovery_server),
+                "expected HOST:PORT, e.g. 192.168.1.10:11811",
+            ),
+            (
+                "discovery_server",
+                self.discovery_server is None or self.discovery != "simple",
+                "simple discovery uses no server",
+            ),
+            (
+                "discovery_port",
+                self.discovery_port is None
+                or (self.discovery_server is None and 1 <= self.discovery_port <= 65535),
+                "a UDP port 1 … 65535 of the server this launch starts (none with an "
+                "existing server)",
+            ),
+            (
+                "discovery_port",
+                self.discovery_port is None or self.discovery != "simple",
+                "simple discovery uses no server",
+            ),
             (
                 "lockstep_timeout",
                 math.isfinite(self.lockstep_timeout) and self.lockstep_timeout > 0,
@@ -229,6 +266,22 @@ def _is_split(text: str) -> bool:
 
 def _one_of(choices: tuple[str, ...]) -> str:
     return f"allowed: {', '.join(choices)}"
+
+
+def _is_address(text: str) -> bool:
+    try:
+        dds.parse_address(text)
+    except ValueError:
+        return False
+    return True
+
+
+def resolved_discovery(config: LaunchConfig) -> str:
+    """``simple`` or ``server``: what the launch's ``discovery`` means
+    (:func:`aes_ros.ros.discovery.resolved_mode`; a given port means a server too)."""
+    given = config.discovery_server or config.discovery_port is not None
+    mode = "server" if config.discovery == "auto" and given else config.discovery
+    return dds.resolved_mode(mode, config.num_robots, config.discovery_server)
 
 
 class ProcessSpec(NamedTuple):
@@ -555,14 +608,18 @@ def _describe_tracking(config: LaunchConfig) -> str:
     )
 
 
-def describe(config: LaunchConfig, hosts: int) -> str:
-    """One line on what a launch runs (``hosts``: its robot processes)."""
+def describe(config: LaunchConfig, hosts: int, discovery: dds.Discovery | None = None) -> str:
+    """One line on what a launch runs (``hosts``: its robot processes; ``discovery``:
+    how they find each other, None: simple)."""
+    found = "simple discovery"
+    if discovery is not None and discovery.address is not None:
+        found = f"discovery server {discovery.address}"
     return (
         f"{config.num_robots} robots, layout {resolved_layout(config)} ({hosts} robot "
         f"process{'es' if hosts != 1 else ''}), neighbours from {config.neighbor_source}, "
         f"{config.mode} mode{', lockstep' if config.lockstep else ''}, "
-        f"real-time factor {config.real_time_factor:g}, on failure {config.on_failure}"
-        + _describe_tracking(config)
+        f"real-time factor {config.real_time_factor:g}, on failure {config.on_failure}, "
+        f"{found}" + _describe_tracking(config)
     )
 
 
@@ -601,10 +658,21 @@ def recorder_command(
     return ProcessSpec("recorder", argv)
 
 
+def discovery_server_command(discovery: dds.Discovery, python: str) -> ProcessSpec | None:
+    """The discovery server a launch starts (:func:`aes_ros.ros.discovery.serve` run by
+    ``python``); None when it uses an existing server or simple discovery."""
+    if not discovery.starts_server:
+        return None
+    argv = dds.server_argv(discovery.port, discovery.listen, python)
+    return ProcessSpec(dds.SERVER_PROCESS, argv)
+
+
 class StartOrder(NamedTuple):
     """A launch's processes in the order the launcher starts them (:func:`start_order`).
 
-    recorder : the MCAP recorder, first (None without ``record``).
+    discovery_server : the discovery server, before anything else (None: simple
+        discovery, or an existing server).
+    recorder : the MCAP recorder, first of the nodes (None without ``record``).
     bridge : ``aes-sim-bridge`` (None in a real arena, ``world="none"``).
     tracking : with ``tracking="camera"`` the simulated overhead camera (none in a real
         arena) and the tracker (:func:`tracking_commands`).
@@ -618,6 +686,7 @@ class StartOrder(NamedTuple):
     supervisor: ProcessSpec
     robots: list[ProcessSpec]
     dashboard: ProcessSpec | None
+    discovery_server: ProcessSpec | None = None
 
     @property
     def first(self) -> list[ProcessSpec]:
@@ -629,15 +698,23 @@ class StartOrder(NamedTuple):
     @property
     def by_name(self) -> dict[str, ProcessSpec]:
         """Every process by its name."""
-        specs = (*self.first, self.supervisor, *self.robots, self.recorder, self.dashboard)
+        specs = (
+            self.discovery_server, *self.first, self.supervisor, *self.robots, self.recorder,
+            self.dashboard,
+        )  # fmt: skip
         return {spec.name: spec for spec in specs if spec is not None}
 
 
 def start_order(
-    config: LaunchConfig, scenario_file: Path, robots_file: Path, layout_file: Path
+    config: LaunchConfig,
+    scenario_file: Path,
+    robots_file: Path,
+    layout_file: Path,
+    discovery: dds.Discovery | None = None,
 ) -> StartOrder:
     """Every process of a launch in start order; ``layout_file``: the arena's reference
-    markers (:func:`write_layout`)."""
+    markers (:func:`write_layout`); ``discovery``: how they find each other (None:
+    simple discovery)."""
     recorder = dashboard = None
     if config.record is not None:
         bag = Path(config.record).resolve()
@@ -658,4 +735,5 @@ def start_order(
         supervisor_command(config, scenario_file),
         robot_commands(config, scenario_file, robots_file),
         dashboard,
+        discovery_server_command(discovery, sys.executable) if discovery is not None else None,
     )

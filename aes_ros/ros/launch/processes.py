@@ -74,7 +74,9 @@ class ProcessSet:
     ``log_dir/<name>.log`` (appended to, so a restarted process keeps one log).
 
     With ``pid_file`` the pids of the live children are kept in that file (one per
-    line, rewritten at every start) for :mod:`aes_ros.ros.launch.reaper`.
+    line, rewritten at every start) for :mod:`aes_ros.ros.launch.reaper`. ``env_for``
+    holds what differs from ``env`` for a process of a given name, at every start of it
+    (e.g. the recorder as a discovery server's super client).
     """
 
     def __init__(
@@ -83,6 +85,7 @@ class ProcessSet:
         self.log_dir = Path(log_dir)
         self.log_dir.mkdir(parents=True, exist_ok=True)
         self.env = {**os.environ, **(env or {}), "PYTHONUNBUFFERED": "1"}
+        self.env_for: dict[str, dict[str, str]] = {}
         self.children: list[Child] = []
         self.pid_file = pid_file
 
@@ -93,7 +96,7 @@ class ProcessSet:
         with open(log, "a") as fh:
             proc = subprocess.Popen(
                 argv,
-                env=self.env,
+                env={**self.env, **self.env_for.get(name, {})},
                 stdin=subprocess.DEVNULL,
                 stdout=fh,
                 stderr=subprocess.STDOUT,

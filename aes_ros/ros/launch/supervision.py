@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.events import EventLog, LogEvents, exit_text
 from aes_ros.ros.launch.plan import LaunchError
@@ -44,6 +45,8 @@ def ready_signal(name: str) -> str:
         return names.recorder_receiving(names.POSES)
     if name == names.DASHBOARD_NODE:
         return names.DASHBOARD_READY
+    if name == dds.SERVER_PROCESS:
+        return dds.SERVER_READY
     return names.ROBOTS_READY
 
 
@@ -68,6 +71,8 @@ class Supervision:
     command_for: Callable[[str], list[str]]
     sim_time: Callable[[], float | None]
     backoff: Backoff = field(default_factory=Backoff)
+    #: Another back-off for a process of that name (the discovery server).
+    backoff_for: dict[str, Backoff] = field(default_factory=dict)
     clock: Callable[[], float] = time.monotonic
     #: Processes given up on (the run goes on without them).
     given_up: list[str] = field(default_factory=list)
@@ -141,10 +146,10 @@ class Supervision:
         elif self.on_failure == "continue":
             give_up("died", "--on-failure continue")
         else:
-            policy = self._policies.setdefault(name, RestartPolicy(self.backoff))
+            b = self.backoff_for.get(name, self.backoff)
+            policy = self._policies.setdefault(name, RestartPolicy(b))
             delay = policy.delay(now)
             if delay is None:
-                b = self.backoff
                 give_up("died", f"restarted {b.limit} times within {b.window:g} s")
             else:
                 note("died", f"restart in {delay:g} s")

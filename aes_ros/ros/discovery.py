@@ -1,0 +1,294 @@
+"""How the processes of a swarm find each other: Fast DDS's simple discovery, or a
+discovery server (``aes-swarm launch --discovery``, ``scripts/start_swarm.sh -d``).
+
+With **simple** discovery (Fast DDS's default) every participant announces itself to
+every other and pairs every endpoint it learns of with its own: the work grows with the
+product of the processes' endpoints (docs/performance.md, "Starting 1000 robots"). With a
+**discovery server** every participant is a *client* that talks to the server only, and
+the server relays to each client the endpoints on the topics that client uses.
+
+- The server is Fast DDS's ``fast-discovery-server`` (in the ``ros_fastrtps`` wheel),
+  id 0, on one UDP port; :func:`serve` runs it (``python -m aes_ros.ros.discovery serve``):
+  the wheel's binary does not find its own libraries, and the server talks UDP only, so
+  that a killed server leaves nothing in ``/dev/shm``. Its lease is 2 s
+  (``fastdds_server_profile.xml``): a launch restarts a server that died only after
+  :data:`SERVER_RESTART_DELAY`, when its clients have forgotten it, else they would take
+  the new one for the old one and ignore it. Endpoints matched already keep talking
+  while there is no server (measured: 30 s without one); only new ones wait for it.
+- A process is pointed at it by ``ROS_DISCOVERY_SERVER=HOST:PORT`` in its environment
+  (Fast DDS 2.14 turns a participant of simple discovery into a client then).
+  ``ROS_SUPER_CLIENT=true`` makes it a *super client*: it learns of every endpoint the
+  server knows. A plain client learns of the participants and their node names (every
+  node publishes and reads ``ros_discovery_info``) but of topics and services only those
+  it has endpoints on itself: ``ros2 topic list`` and the recorder, which subscribes to
+  topics it finds, need a super client; node lists, the services one calls and the
+  topics one reads do not.
+- Fast DDS reads ``ROS_DISCOVERY_SERVER`` when a participant is made and keeps the last
+  value it found: once a process has made a client, a later participant made without
+  the variable is a client of the same server. Setting it to ``""`` goes back to simple
+  discovery (:func:`participant_variables`).
+
+``ROS_AUTOMATIC_DISCOVERY_RANGE`` does not limit a client: it talks to the servers it is
+given, wherever they are. A server this module starts listens on 127.0.0.1 when the range
+is ``LOCALHOST`` (the processes of this host only, as the range says) and on every
+interface otherwise, so that robots on other hosts can join with
+``ROS_DISCOVERY_SERVER=<this host's address>:<port>``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import shutil
+import socket
+import sys
+import sysconfig
+from dataclasses import dataclass
+from pathlib import Path
+
+#: What ``--discovery`` may ask for.
+DISCOVERY_MODES = ("auto", "simple", "server")
+#: ``auto`` uses a discovery server above this many robots; None: not by size. Not measured
+#: yet (bench/bench_startup.py and bench/bench_ros.py in both modes will put the crossover
+#: here, issue #24): until then ``auto`` keeps the simple discovery every figure of
+#: docs/performance.md was measured with, and uses a server only when one is asked for.
+DISCOVERY_SERVER_ABOVE: int | None = None
+#: The variables that make a participant a client (super client) of a discovery server.
+SERVER_VARIABLE = "ROS_DISCOVERY_SERVER"
+SUPER_CLIENT_VARIABLE = "ROS_SUPER_CLIENT"
+#: The process name of the launch's discovery server (its log: ``discovery_server.log``).
+SERVER_PROCESS = "discovery_server"
+#: What ``fast-discovery-server`` prints once it listens.
+SERVER_READY = "Server is running"
+#: The server's id: clients address server ``k`` by the ``k``-th entry of
+#: ``ROS_DISCOVERY_SERVER``; one server, so 0 and a plain ``HOST:PORT``.
+SERVER_ID = 0
+#: The server program of the ``ros_fastrtps`` wheel.
+SERVER_PROGRAM = "fast-discovery-server"
+#: The server's Fast DDS profile: its lease, SERVER_LEASE [s] (fastdds_server_profile.xml
+#: says why), after which its clients forget a server that died.
+SERVER_PROFILE = Path(__file__).resolve().parent / "fastdds_server_profile.xml"
+SERVER_LEASE = 2.0
+#: Wall seconds before a server that died is started again: its lease and a margin, so
+#: that no client takes the new server for the old one.
+SERVER_RESTART_DELAY = SERVER_LEASE + 1.0
+
+
+def parse_address(text: str) -> tuple[str, int]:
+    """``HOST:PORT`` (an IPv4 address or a host name, a UDP port 1 … 65535) as a pair;
+    ValueError saying what is wrong otherwise."""
+    host, sep, port = text.strip().rpartition(":")
+    if not sep or not host or ";" in text or "[" in text:
+        raise ValueError(f"{text!r}: expected HOST:PORT, e.g. 192.168.1.10:11811")
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise ValueError(f"{text!r}: the port must be a number 1 … 65535")
+    return host, int(port)
+
+
+def resolved_mode(mode: str, num_robots: int, server: str | None = None) -> str:
+    """``simple`` or ``server``: what ``mode`` means for ``num_robots`` robots.
+
+    ``auto`` is ``server`` above :data:`DISCOVERY_SERVER_ABOVE` robots or when an existing
+    server is given, else ``simple``."""
+    if mode == "auto":
+        above = DISCOVERY_SERVER_ABOVE
+        return "server" if server or (above is not None and num_robots > above) else "simple"
+    return mode
+
+
+def is_localhost(env: dict[str, str]) -> bool:
+    """Discovery kept on this host (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``)."""
+    return env.get("ROS_AUTOMATIC_DISCOVERY_RANGE", "").strip().upper() == "LOCALHOST"
+
+
+def free_udp_port(host: str = "127.0.0.1") -> int:
+    """A UDP port nobody listens on at ``host`` now (the kernel's choice)."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind((host, 0))
+        return int(sock.getsockname()[1])
+
+
+def host_address() -> str:
+    """This host's address as other hosts see it, best guess (the interface of the
+    default route; no packet is sent), else its name."""
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        try:
+            sock.connect(("192.0.2.1", 9))  # TEST-NET-1: only picks the route
+            return str(sock.getsockname()[0])
+        except OSError:
+            return socket.gethostname()
+
+
+@dataclass(frozen=True)
+class Discovery:
+    """The discovery of one swarm.
+
+    mode : ``simple`` or ``server``.
+    address : ``HOST:PORT`` of the server the processes use (None with simple discovery).
+    listen : the address the server started for this swarm listens on (127.0.0.1, or
+        0.0.0.0 for every interface); None when an existing server is used.
+    """
+
+    mode: str = "simple"
+    address: str | None = None
+    listen: str | None = None
+
+    @property
+    def starts_server(self) -> bool:
+        """This swarm starts its own server (else it uses one, or none)."""
+        return self.listen is not None
+
+    @property
+    def port(self) -> int | None:
+        return parse_address(self.address)[1] if self.address else None
+
+    def client_environment(self, env: dict[str, str], super_client: bool = False) -> dict[str, str]:
+        """``env`` for a process of this swarm: pointed at the server (a super client
+        if asked), or with neither variable under simple discovery (a caller's
+        ``ROS_DISCOVERY_SERVER`` would make the processes clients)."""
+        out = {k: v for k, v in env.items() if k not in (SERVER_VARIABLE, SUPER_CLIENT_VARIABLE)}
+        if self.address is not None:
+            out[SERVER_VARIABLE] = self.address
+            if super_client:
+                out[SUPER_CLIENT_VARIABLE] = "true"
+        return out
+
+    def participant_variables(self, super_client: bool = False) -> dict[str, str | None]:
+        """What to set in ``os.environ`` (None: remove) while a participant of this
+        process is made (module docstring: Fast DDS keeps the last server it read, so
+        simple discovery sets it to ``""`` rather than removing it)."""
+        if self.address is None:
+            return {SERVER_VARIABLE: "", SUPER_CLIENT_VARIABLE: None}
+        return {
+            SERVER_VARIABLE: self.address,
+            SUPER_CLIENT_VARIABLE: "true" if super_client else None,
+        }
+
+    def shell_lines(self, env: dict[str, str]) -> list[str]:
+        """The lines a shell needs for ``ros2`` commands on this swarm: the server and
+        super client (or neither, for simple discovery), the ROS domain and discovery
+        range of ``env`` if set; and for a server on every interface, how other hosts
+        reach it."""
+        if self.address is None:
+            lines = [f"unset {SERVER_VARIABLE} {SUPER_CLIENT_VARIABLE}"]
+        else:
+            lines = [
+                f"export {SERVER_VARIABLE}={shlex.quote(self.address)}",
+                f"export {SUPER_CLIENT_VARIABLE}=true",
+            ]
+        for name in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE"):
+            if env.get(name):
+                lines.append(f"export {name}={shlex.quote(env[name])}")
+        return lines
+
+    def script(self, env: dict[str, str]) -> str:
+        """``ros_env.sh``: :meth:`shell_lines` with comments, to be sourced."""
+        head = [
+            "# The environment of a shell for ros2 commands on this swarm: . ros_env.sh",
+            "# (then `ros2 daemon stop`: a running daemon keeps its old discovery settings)",
+        ]
+        if self.starts_server and self.listen != "127.0.0.1":
+            head.append(f"# robots on other hosts: {SERVER_VARIABLE}={host_address()}:{self.port}")
+        return "\n".join([*head, *self.shell_lines(env)]) + "\n"
+
+
+def plan(
+    mode: str,
+    num_robots: int,
+    env: dict[str, str],
+    server: str | None = None,
+    port: int | None = None,
+) -> Discovery:
+    """The discovery of a swarm of ``num_robots`` robots started from ``env``: ``mode``
+    resolved (:func:`resolved_mode`); with ``server`` (``HOST:PORT``) that existing
+    server, else a new one on ``port`` (None: a free one), on 127.0.0.1 when ``env``
+    keeps discovery on this host, else on every interface."""
+    if resolved_mode(mode, num_robots, server) == "simple":
+        return Discovery()
+    if server is not None:
+        host, number = parse_address(server)
+        return Discovery("server", f"{host}:{number}")
+    listen = "127.0.0.1" if is_localhost(env) else "0.0.0.0"
+    number = free_udp_port(listen) if port is None else int(port)
+    return Discovery("server", f"127.0.0.1:{number}", listen)
+
+
+# ----------------------------------------------------------------------------- the server
+
+
+def server_argv(port: int, listen: str, python: str = sys.executable) -> list[str]:
+    """The command line that runs the server (:func:`serve` under ``python``)."""
+    return [python, "-m", "aes_ros.ros.discovery", "serve", "--port", str(port), "--listen", listen]
+
+
+def server_program() -> str:
+    """``fast-discovery-server`` of this environment (next to the interpreter), else PATH."""
+    local = Path(sys.executable).parent / SERVER_PROGRAM
+    if local.exists():
+        return str(local)
+    found = shutil.which(SERVER_PROGRAM)
+    if found is None:
+        raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with ros_fastrtps)")
+    return found
+
+
+def server_environment(env: dict[str, str], program: str) -> dict[str, str]:
+    """``env`` for the server: the ``ros_fastrtps`` wheel's libraries on the library path
+    (its binary's run path points elsewhere), UDP only (nothing left in /dev/shm when it
+    is killed) and no client variables."""
+    dirs = []
+    for key in ("platlib", "purelib"):
+        libs = Path(sysconfig.get_paths()[key]) / "ros_fastrtps.libs"
+        if libs.is_dir() and str(libs) not in dirs:
+            dirs.append(str(libs))
+    lib = Path(program).resolve().parent.parent / "lib"
+    if any(lib.glob("libfastrtps.so*")):
+        dirs.append(str(lib))
+    if env.get("LD_LIBRARY_PATH"):
+        dirs.append(env["LD_LIBRARY_PATH"])
+    out = {k: v for k, v in env.items() if k not in (SERVER_VARIABLE, SUPER_CLIENT_VARIABLE)}
+    out["FASTDDS_BUILTIN_TRANSPORTS"] = "UDPv4"
+    if dirs:
+        out["LD_LIBRARY_PATH"] = os.pathsep.join(dirs)
+    return out
+
+
+def serve(port: int, listen: str) -> None:
+    """Become the discovery server (``exec``: the process is the server, its pid the
+    server's, so that a signal to it reaches the server). Without a backup: the server's
+    ``-b`` (restore its state when restarted) crashed at the restart with these wheels
+    (a malloc assertion in Fast DDS 2.14.5); its short lease does the job instead
+    (:data:`SERVER_PROFILE`, given with ``-x``: without it the server takes Fast DDS's
+    built-in defaults, not the default profile of the environment)."""
+    program = server_program()
+    argv = [program, "-i", str(SERVER_ID), "-l", listen, "-p", str(port), "-x", str(SERVER_PROFILE)]
+    os.execve(program, argv, server_environment(dict(os.environ), program))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``serve``: run a server; ``port``: print a free UDP port; ``env ADDRESS``: print
+    the shell lines for a swarm on that server (``scripts/start_swarm.sh`` uses all three)."""
+    parser = argparse.ArgumentParser(prog="python -m aes_ros.ros.discovery")
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("serve", help="run fast-discovery-server (id 0)")
+    run.add_argument("--port", type=int, required=True)
+    run.add_argument("--listen", default="0.0.0.0")
+    free = sub.add_parser("port", help="print a free UDP port")
+    free.add_argument("--listen", default="127.0.0.1")
+    lines = sub.add_parser("env", help="print ros_env.sh: the shell lines for ros2 commands")
+    lines.add_argument("address", help="HOST:PORT of the server")
+    lines.add_argument("--listen", default=None, help="what the server listens on, if started")
+    args = parser.parse_args(argv)
+    if args.command == "serve":
+        serve(args.port, args.listen)
+    elif args.command == "port":
+        print(free_udp_port(args.listen))
+    else:
+        parse_address(args.address)
+        print(Discovery("server", args.address, args.listen).script(dict(os.environ)), end="")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
