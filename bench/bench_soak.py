@@ -23,7 +23,10 @@ Checked at the end:
   that plus the process's target: robot host and supervisor 3 s, bridge 5 s);
 - messages lost (the publishers' sequence numbers in the bag segments, as the
   recorder counts them) outside those windows (wall time of the kill to the window's
-  end; the recorder's own death excuses what it missed until its restart);
+  end; the recorder's own death excuses what it missed until its restart); segments
+  that ``--bag-keep`` deleted cannot be read, so the recorder's own total
+  (``lost_total``, from its log) minus what the kept segments place inside a window
+  counts as outside;
 - processes of the domain and Fast DDS shared-memory files left 15 s after the end;
 - every bag segment left (``--bag-keep``) readable: closed, or cut by a kill of its
   recorder and read up to its last chunk.
@@ -116,6 +119,8 @@ class Verdict:
     gaps: list[tuple[float, float]] = field(default_factory=list)
     lost_outside: int = 0
     lost_inside: int = 0
+    #: Lost in all segments, the deleted ones too (the recorder's own count).
+    lost_total: int = 0
     #: (topic, wall time before, after, lost) of the losses outside recovery windows.
     lost_where: list[tuple[str, float, float, int]] = field(default_factory=list)
     orphans: list[str] = field(default_factory=list)
@@ -269,6 +274,14 @@ def bag_losses(
     return outside, inside
 
 
+def recorder_lost(log: Path) -> int:
+    """Messages the recorder counted lost over its whole recording (each of its lives
+    that ended cleanly says so in its last line: ``bag …: N messages on T topics, L lost``)."""
+    if not log.exists():
+        return 0
+    return sum(int(m) for m in re.findall(r"messages on \d+ topics, (\d+) lost", log.read_text()))
+
+
 def readable(segment: Path) -> bool:
     """A segment is readable: closed, or cut by a kill and read up to its last chunk."""
     return bag_is_closed(segment) or next(raw_messages([segment]), None) is not None
@@ -367,6 +380,10 @@ def judge(
     v.segments = len(segments)
     v.segments_readable = sum(readable(s) for s in segments)
     v.lost_outside, v.lost_inside = bag_losses(segments, wall_windows, v.lost_where)
+    # segments --bag-keep deleted are not there to read: the recorder's own count of
+    # everything it recorded; what the kept segments cannot place counts as outside
+    v.lost_total = recorder_lost(run_dir / "logs" / "recorder.log")
+    v.lost_outside = max(v.lost_outside, v.lost_total - v.lost_inside)
     deadline = time.monotonic() + 15
     while domain_processes(domain) and time.monotonic() < deadline:
         time.sleep(0.5)
@@ -465,7 +482,8 @@ def main(argv: list[str] | None = None) -> int:
         f"chaos_s={args.chaos:g} {rss} launcher_finish_mb={v.launcher_finish_mb:.0f} "
         f"max_growth_pct={worst:.1f} faults={v.faults} "
         f"recovered={v.recovered} gaps={len(v.gaps)} lost_outside={v.lost_outside} "
-        f"lost_inside={v.lost_inside} orphans={len(v.orphans)} shm_left={len(v.shm_left)} "
+        f"lost_inside={v.lost_inside} lost_total={v.lost_total} orphans={len(v.orphans)} "
+        f"shm_left={len(v.shm_left)} "
         f"segments={v.segments} segments_readable={v.segments_readable} "
         f"ok={'yes' if ok(v, args) else 'no'}"
     )
