@@ -162,13 +162,13 @@ class Probe:
         from sensor_msgs.msg import CameraInfo
 
         from aes_ros.ros import interface as names
-        from aes_ros.ros.launch.monitor import _udp_only
+        from aes_ros.ros.launch.monitor import udp_only
 
         self.n = n
         self.got = Received()
         self.context = rclpy.Context()
         # UDP only, as the launcher's monitor: no shared memory for the stop to wait on.
-        with _udp_only():
+        with udp_only():
             rclpy.init(
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
             )

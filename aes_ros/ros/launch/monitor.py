@@ -16,7 +16,7 @@ import contextlib
 import json
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -79,7 +79,7 @@ class Monitor:
         #: outputs; sim time counts from 0.
         self.origin: float | None = None if wall_clock else 0.0
         self.context = rclpy.Context()
-        with _udp_only((discovery or Discovery()).participant_variables()):
+        with udp_only(discovery):
             # The launcher handles SIGINT/SIGTERM itself (it must stop the children first).
             rclpy.init(
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
@@ -350,16 +350,18 @@ def _publishers(node: Any, topic: str) -> list[str]:
 
 
 @contextlib.contextmanager
-def _udp_only(discovery: dict[str, str | None]):
+def udp_only(discovery: Discovery | None = None) -> Iterator[None]:
     """While a participant is made, for it only (the children were given their
     environment before): Fast DDS's built-in transports set to UDPv4, the launch's
     Fast DDS profile (:func:`aes_ros.ros.launch.processes.fastdds_environment`) and the
-    ``discovery`` variables (None: removed)."""
+    variables of ``discovery`` (None: simple discovery). The launcher's monitor and the
+    benchmarks' observers make their participants so: one killed with SIGKILL leaves
+    no shared-memory files."""
     settings: dict[str, str | None] = {"FASTDDS_BUILTIN_TRANSPORTS": "UDPv4"}
     settings.update(
         (k, v) for k, v in fastdds_environment(dict(os.environ)).items() if k not in os.environ
     )
-    settings.update(discovery)
+    settings.update((discovery or Discovery()).participant_variables())
     old = {key: os.environ.get(key) for key in settings}
     _set_environ(settings)
     try:
