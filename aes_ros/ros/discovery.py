@@ -40,7 +40,6 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
-import shutil
 import socket
 import sys
 import sysconfig
@@ -224,13 +223,14 @@ def server_argv(port: int, listen: str, python: str = sys.executable) -> list[st
 
 def server_program() -> str:
     """``fast-discovery-server`` of this environment (next to the interpreter), else PATH."""
-    local = Path(sys.executable).parent / SERVER_PROGRAM
-    if local.exists():
-        return str(local)
-    found = shutil.which(SERVER_PROGRAM)
-    if found is None:
-        raise FileNotFoundError(f"{SERVER_PROGRAM} not found (it comes with ros_fastrtps)")
-    return found
+    from aes_ros.ros.launch.plan import LaunchError, executable  # plan imports this module
+
+    try:
+        return executable(SERVER_PROGRAM)
+    except LaunchError:
+        raise FileNotFoundError(
+            f"{SERVER_PROGRAM} not found (it comes with ros_fastrtps)"
+        ) from None
 
 
 def server_environment(env: dict[str, str], program: str) -> dict[str, str]:
