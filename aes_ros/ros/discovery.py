@@ -292,3 +292,13 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def set_environ(values: dict[str, str | None]) -> None:
+    """Set each variable of ``values`` in ``os.environ`` (None: remove it), as
+    :meth:`Discovery.participant_variables` gives them."""
+    for name, value in values.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value

@@ -18,6 +18,7 @@ import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
+from aes_ros.ros.discovery import set_environ
 from aes_ros.ros.launch.processes import Child, ProcessSet, domain_processes
 
 #: Default wait [s] for a reply, a match or a service: generous, since other tests
@@ -86,24 +87,16 @@ def shell_environment(script: Path) -> Iterator[dict[str, str | None]]:
     changes = shell_variables(script)
     old = {name: os.environ.get(name) for name in changes}
     try:
-        _set_environ(changes)
+        set_environ(changes)
         yield changes
     finally:
-        _set_environ({"ROS_DISCOVERY_SERVER": "", "ROS_SUPER_CLIENT": None})
+        set_environ({"ROS_DISCOVERY_SERVER": "", "ROS_SUPER_CLIENT": None})
         context = rclpy.Context()  # a participant (made with its first node) reads the ""
         rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("forget_discovery_server", context=context)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        _set_environ({"ROS_DISCOVERY_SERVER": None, **old})
-
-
-def _set_environ(values: dict[str, str | None]) -> None:
-    for name, value in values.items():
-        if value is None:
-            os.environ.pop(name, None)
-        else:
-            os.environ[name] = value
+        set_environ({"ROS_DISCOVERY_SERVER": None, **old})
 
 
 def wait_for(predicate: Callable[[], object], timeout: float, interval: float = 0.05) -> bool:

@@ -32,7 +32,7 @@ from std_srvs.srv import SetBool, Trigger
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError
-from aes_ros.ros.discovery import Discovery
+from aes_ros.ros.discovery import Discovery, set_environ
 from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import fastdds_environment
 from aes_ros.ros.qos import LATCHED
@@ -363,16 +363,8 @@ def udp_only(discovery: Discovery | None = None) -> Iterator[None]:
     )
     settings.update((discovery or Discovery()).participant_variables())
     old = {key: os.environ.get(key) for key in settings}
-    _set_environ(settings)
+    set_environ(settings)
     try:
         yield
     finally:
-        _set_environ(old)
-
-
-def _set_environ(values: dict[str, str | None]) -> None:
-    for key, value in values.items():
-        if value is None:
-            os.environ.pop(key, None)
-        else:
-            os.environ[key] = value
+        set_environ(old)
