@@ -19,6 +19,8 @@ Usage::
     python bench/bench_ros.py                       # the standard grid (~15 min)
     python bench/bench_ros.py --robots 100 --rates 50 --sources poses --layouts auto,per-core
     python bench/bench_ros.py --quick               # smoke version for CI (~30 s)
+    python bench/bench_ros.py --robots 1000 --rates 20 --discovery simple,server --repeat 3 \
+        --no-baseline                               # discovery modes side by side (~15 min)
     python bench/bench_ros.py --physics             # only the bridge physics line
 
 Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default
@@ -68,6 +70,7 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
+from aes_ros.ros.discovery import SERVER_PROCESS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sim import direct_port  # a sibling script, not a package
@@ -122,6 +125,9 @@ class Row:
     processes: int
     cpu_us_per_robot_step: float = float("nan")
     design: str = "aes"
+    discovery: str = "simple"
+    run: int = 1
+    cpu_discovery: float = 0.0
 
     def cells(self) -> list[str]:
         return [
@@ -141,13 +147,16 @@ class Row:
             f"{self.cpu_launcher:.0f}",
             f"{self.memory_mb:.0f}",
             f"{self.cpu_us_per_robot_step:.0f}",
+            self.discovery,
+            f"{self.cpu_discovery:.0f}",
         ]
 
 
 HEADER = [
     "robots", "Hz", "source", "layout", "start [s]", "RTF", "rate min", "rate med",
     "p50 [ms]", "p99 [ms]", "CPU bridge %", "CPU sup %", "CPU robots %", "CPU launch %",
-    "mem [MB]", "CPU µs/robot-step",
+    "mem [MB]", "CPU µs/robot-step", "discovery",
+    "CPU disc %",
 ]  # fmt: skip
 
 
@@ -185,17 +194,25 @@ def pss_mb(pid: int) -> float:
 
 
 def measure(
-    robots: int, rate: float, source: str, layout: str, warmup: float, window: float
+    robots: int,
+    rate: float,
+    source: str,
+    layout: str,
+    warmup: float,
+    window: float,
+    discovery: str = "auto",
+    run: int = 1,
 ) -> Row:
     from aes_ros.ros.launch import LaunchConfig, Launcher
-    from aes_ros.ros.launch.plan import resolved_layout
+    from aes_ros.ros.launch.plan import resolved_discovery, resolved_layout
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     config = LaunchConfig(
         sc, label="bench", layout=layout, neighbor_source=source, mode="kinematic",
-        duration=0.0, start_timeout=600.0,
+        duration=0.0, start_timeout=600.0, discovery=discovery,
     )  # fmt: skip
     layout = resolved_layout(config)  # the table shows what `auto` chose
+    discovery = resolved_discovery(config)
     launcher = Launcher(config, say=lambda _text: None)
     t0 = time.monotonic()
     try:
@@ -217,13 +234,15 @@ def measure(
         launcher.stop()
         launcher.cleanup(True)
     robot_cpu = sum(v for k, v in cpu.items() if k.startswith("robot"))
+    server_cpu = cpu.get(SERVER_PROCESS, 0.0)  # part of the system's cost when there is one
+    system_cpu = cpu["sim_bridge"] + cpu["supervisor"] + robot_cpu + server_cpu
     return Row(
         robots, rate, source, layout, start_s, stats["real_time_factor"],
         stats["rate_min_hz"], stats["rate_median_hz"],
         stats["latency_p50_ms"] or float("nan"), stats["latency_p99_ms"] or float("nan"),
         cpu["sim_bridge"], cpu["supervisor"], robot_cpu, cpu["launcher"], memory,
-        len(pids) - 1,
-        per_robot_step(cpu["sim_bridge"] + cpu["supervisor"] + robot_cpu, stats, robots),
+        len(pids) - 1, per_robot_step(system_cpu, stats, robots), "aes", discovery, run,
+        server_cpu,
     )  # fmt: skip
 
 
@@ -385,6 +404,49 @@ def goal_lines(rows: list[Row]) -> list[str]:
     return lines
 
 
+def discovery_lines(rows: list[Row]) -> list[str]:
+    """Each size measured with more than one discovery mode, the modes side by side (every
+    run: seconds until every robot moved, Hz answered, CPU per robot-step), then issue
+    #24's goals those rows can judge: through a server 1000 robots at 20 Hz move within
+    15 s and answer >= 95 % in every run; 100 robots at 50 Hz no worse than simple
+    discovery (median answered rate within 1 %, median CPU per robot-step within 10 %)."""
+    groups: dict[tuple[int, float, str, str], dict[str, list[Row]]] = {}
+    for r in rows:
+        if r.design == "aes":
+            key = (r.robots, r.rate, r.source, r.layout)
+            groups.setdefault(key, {}).setdefault(r.discovery, []).append(r)
+    lines = []
+    for (robots, rate, source, layout), modes in groups.items():
+        if len(modes) < 2:
+            continue
+        lines.append(f"{robots} robots at {rate:g} Hz ({source}, {layout}):")
+        for mode, runs in modes.items():
+            starts = "/".join(f"{r.start_s:.1f}" for r in runs)
+            hz = "/".join(f"{r.rate_median_hz:.1f}" for r in runs)
+            cpu = "/".join(f"{r.cpu_us_per_robot_step:.0f}" for r in runs)
+            lines.append(
+                f"  {mode:<7} moving after {starts} s; answered {hz} Hz; CPU {cpu} µs/robot-step"
+            )
+        server, simple = modes.get("server"), modes.get("simple")
+        if server and (robots, rate) == (1000, 20):
+            worst_start = max(r.start_s for r in server)
+            worst_share = min(r.rate_median_hz for r in server) / rate
+            met = worst_start <= 15.0 and worst_share >= 0.95
+            lines.append(
+                f"  goal (server, every run): moving <= 15 s, >= 95 % answered: worst "
+                f"{worst_start:.1f} s, {100 * worst_share:.0f} %: {'met' if met else 'NOT met'}"
+            )
+        if server and simple and (robots, rate) == (100, 50):
+            hz = [float(np.median([r.rate_median_hz for r in m])) for m in (server, simple)]
+            cpu = [float(np.median([r.cpu_us_per_robot_step for r in m])) for m in (server, simple)]
+            met = hz[0] >= 0.99 * hz[1] and cpu[0] <= 1.1 * cpu[1]
+            lines.append(
+                f"  goal: server no worse than simple: median {hz[0]:.1f} vs {hz[1]:.1f} Hz, "
+                f"{cpu[0]:.0f} vs {cpu[1]:.0f} µs/robot-step: {'met' if met else 'NOT met'}"
+            )
+    return lines
+
+
 def print_table(rows: list[Row]) -> None:
     cells = [HEADER, *(r.cells() for r in rows)]
     widths = [max(len(c[i]) for c in cells) for i in range(len(HEADER))]
@@ -408,17 +470,19 @@ def plot(rows: list[Row], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.2))
-    groups: dict[tuple[str, str], list[Row]] = {}
+    groups: dict[tuple[str, str, str], list[Row]] = {}
     for r in rows:
-        groups.setdefault((r.source, r.layout), []).append(r)
-    for (source, layout), group in groups.items():
+        groups.setdefault((r.source, r.layout, r.discovery), []).append(r)
+    for (source, layout, discovery), group in groups.items():
         for rate in sorted({r.rate for r in group}):
             sel = sorted((r for r in group if r.rate == rate), key=lambda r: r.robots)
             if len(sel) < 2 and len(groups) > 1 and layout != "per-core":
                 style = dict(marker="s", linestyle="none")
             else:
                 style = dict(marker="o")
-            label = f"{source}, {layout}, {rate:g} Hz"
+            label = f"{source}, {layout}, {rate:g} Hz" + (
+                f", {discovery} discovery" if discovery != "simple" else ""
+            )
             n = [r.robots for r in sel]
             axes[0].plot(n, [r.rtf for r in sel], label=label, **style)
             axes[1].plot(n, [r.rate_median_hz / r.rate for r in sel], label=label, **style)
@@ -458,6 +522,13 @@ def main(argv: list[str] | None = None) -> int:
         "--no-baseline", action="store_true",
         help="skip the straightforward design (bench/naive_swarm.py) of the reference line",
     )  # fmt: skip
+    parser.add_argument(
+        "--discovery", default="auto",
+        help="simple,server,auto: measured side by side, one after the other (auto: as launch)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--repeat", type=int, default=1, help="runs of the whole grid, the modes interleaved"
+    )
     parser.add_argument("--warmup", type=float, default=3.0, help="wall seconds before measuring")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--out", type=Path, default=Path("out/bench_ros"))
@@ -488,12 +559,19 @@ def main(argv: list[str] | None = None) -> int:
         from tqdm import tqdm
     except ImportError:  # pragma: no cover
         tqdm = None
-    configs = tqdm(grid, desc="configurations", file=sys.stderr) if tqdm else grid
-    for n, rate, source, layout in configs:
+    modes = args.discovery.split(",")
+    runs = [
+        (run, *config, mode)
+        for run in range(1, args.repeat + 1)
+        for config in grid
+        for mode in modes
+    ]
+    configs = tqdm(runs, desc="configurations", file=sys.stderr) if tqdm else runs
+    for run, n, rate, source, layout, mode in configs:
         try:
-            row = measure(n, rate, source, layout, args.warmup, args.window)
+            row = measure(n, rate, source, layout, args.warmup, args.window, mode, run)
         except Exception as exc:  # one failing configuration must not lose the others
-            print(f"{n} robots {rate} Hz {source} {layout}: FAILED: {exc}", flush=True)
+            print(f"{n} robots {rate} Hz {source} {layout} {mode}: FAILED: {exc}", flush=True)
             continue
         rows.append(row)
         print("  ".join(row.cells()), flush=True)
@@ -559,11 +637,15 @@ def main(argv: list[str] | None = None) -> int:
     if goals := goal_lines(rows):
         print("\nissue #13's goals this run can judge:")
         print("\n".join(goals))
+    if side_by_side := discovery_lines(rows):
+        print("\ndiscovery modes side by side (issue #24):")
+        print("\n".join(side_by_side))
     write_csv(rows, args.out / "bench_ros.csv")
     plot(rows, args.out / "bench_ros.png")
     (args.out / "physics.txt").write_text(line + "\n" + machine + "\n")
     print(
         f"RESULT robots={key.robots} hz={key.rate:g} source={key.source} "
+        f"discovery={key.discovery} "
         f"rate_hz={key.rate_median_hz:.2f} rate_min_hz={key.rate_min_hz:.2f} rtf={key.rtf:.3f} "
         f"p99_ms={key.p99_ms:.1f} start_s={key.start_s:.1f} "
         f"cpu_us_per_robot_step={key.cpu_us_per_robot_step:.1f}{ratios} "

@@ -20,11 +20,12 @@ def bench() -> Iterator[ModuleType]:
 
 def row(
     bench: ModuleType, robots: int, rate: float, source: str, *, us: float, median: float,
-    start: float = 5.0, rtf: float = 1.0, design: str = "aes",
+    start: float = 5.0, rtf: float = 1.0, design: str = "aes", discovery: str = "simple",
+    run: int = 1,
 ) -> Any:  # fmt: skip
     return bench.Row(
-        robots, rate, source, "auto", start, rtf, median - 0.5, median,
-        10.0, 20.0, 30.0, 8.0, 60.0, 5.0, 400.0, 3, us, design,
+        robots, rate, source, "single", start, rtf, median - 0.5, median,
+        10.0, 20.0, 30.0, 8.0, 60.0, 5.0, 400.0, 3, us, design, discovery, run,
     )  # fmt: skip
 
 
@@ -68,7 +69,7 @@ def run_main(
     """``bench_ros.main`` with every measurement faked; returns what it measured and printed."""
     measured: list[tuple] = []
 
-    def measure(robots, rate, source, layout, warmup, window):
+    def measure(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
         measured.append(("aes", robots, rate, source))
         us = {"poses": 200.0, "odom": 500.0}[source] * (0.5 if robots == 1000 else 1.0)
         return row(bench, robots, rate, source, us=us, median=rate)
@@ -148,3 +149,51 @@ def test_a_failed_baseline_keeps_the_measured_rows_and_says_so(
     fields = result_fields(text)
     assert fields["robots"] == "1000" and "efficiency_ratio" not in fields
     assert (tmp_path / "bench_ros.csv").read_text().count("\n") == 1 + 3  # header, 3 rows
+
+
+def test_discovery_modes_are_measured_interleaved_and_judged_side_by_side(
+    bench: ModuleType, monkeypatch, tmp_path: Path
+) -> None:
+    measured: list[tuple] = []
+    # through a server 1000 robots start in 12 s and answer 19.5 Hz; simply, 43 s and 17.6 Hz
+    figures = {"simple": (43.0, 17.6), "server": (12.0, 19.5)}
+
+    def measure(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
+        measured.append((run, discovery))
+        start, median = figures[discovery]
+        return row(bench, robots, rate, source, us=200.0, median=median, start=start + run,
+                   discovery=discovery, run=run)  # fmt: skip
+
+    monkeypatch.setattr(bench, "measure", measure)
+    monkeypatch.setattr(bench, "physics_rtf", lambda seconds: 3.0)
+    monkeypatch.setattr(bench, "machine_reference_us", lambda: 10.0)
+    monkeypatch.setattr(bench, "plot", lambda rows, path: None)
+    printed: list[str] = []
+    monkeypatch.setattr("builtins.print", lambda *a, **k: printed.append(" ".join(map(str, a))))
+    argv = ["--robots", "1000", "--rates", "20", "--discovery", "simple,server", "--repeat", "2"]
+    assert bench.main([*argv, "--no-baseline", "--out", str(tmp_path)]) == 0
+    text = "\n".join(printed)
+    assert measured == [(1, "simple"), (1, "server"), (2, "simple"), (2, "server")]
+    assert "  simple  moving after 44.0/45.0 s; answered 17.6/17.6 Hz" in text
+    assert "  server  moving after 13.0/14.0 s; answered 19.5/19.5 Hz" in text
+    assert "worst 14.0 s, 98 %: met" in text
+    assert result_fields(text)["discovery"] == "simple"  # the first row measured
+
+    figures["server"] = (16.0, 19.5)  # one run at 17 s: the goal holds for every run
+    assert "worst 17.0 s, 98 %: NOT met" in "\n".join(bench.discovery_lines(
+        [measure(1000, 20, "poses", "auto", 0, 0, mode, run)
+         for run in (1, 0) for mode in ("simple", "server")]
+    ))  # fmt: skip
+
+
+def test_server_discovery_at_100_robots_is_judged_against_simple(bench: ModuleType) -> None:
+    def at(discovery: str, median: float, us: float) -> Any:
+        return row(bench, 100, 50, "poses", us=us, median=median, discovery=discovery)
+
+    same = bench.discovery_lines([at("simple", 50.0, 200.0), at("server", 49.8, 210.0)])
+    assert same[-1].endswith("median 49.8 vs 50.0 Hz, 210 vs 200 µs/robot-step: met")
+    slower = bench.discovery_lines([at("simple", 50.0, 200.0), at("server", 49.0, 200.0)])
+    assert slower[-1].endswith(": NOT met")  # 2 % fewer steps answered
+    costlier = bench.discovery_lines([at("simple", 50.0, 200.0), at("server", 50.0, 240.0)])
+    assert costlier[-1].endswith(": NOT met")
+    assert bench.discovery_lines([at("simple", 50.0, 200.0)]) == []  # one mode: nothing to judge
