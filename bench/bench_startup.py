@@ -14,8 +14,10 @@ without the parameter services (``start_parameter_services``).
    there.
 2. ``1000 nodes in P processes``: wall seconds from starting P processes until the last
    has created its share, once with the processes discovering each other (one domain, as
-   a launch does) and once each in a domain of its own (no discovery between them: the
-   floor any split of the robots over processes could reach).
+   a launch does), once all in one domain as clients of a discovery server (started with
+   them, as ``aes-swarm launch --discovery server`` does; :mod:`aes_ros.ros.discovery`)
+   and once each in a domain of its own (no discovery between them: the floor any split
+   of the robots over processes could reach).
 
 Fast DDS runs with its defaults, or with ``--profile launch`` with the profile every
 process of a launch gets (``aes_ros/ros/fastdds_profile.xml``: among others, a participant
@@ -28,7 +30,8 @@ Usage::
     python bench/bench_startup.py --quick             # smaller counts (~1 min)
 
 Prints a table and, as its last line, ``RESULT robots=1000 … start_s_shared=…
-start_s_isolated=… services_ratio_<N>=… machine_ref_us=…`` (ratios of the same run).
+start_s_server=… start_s_isolated=… services_ratio_<N>=… machine_ref_us=…``
+(ratios of the same run).
 """
 
 from __future__ import annotations
@@ -40,6 +43,7 @@ import sys
 import time
 from pathlib import Path
 
+from aes_ros.ros import discovery as dds
 from aes_ros.ros.launch.processes import PROFILE_VARIABLES, fastdds_environment
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
@@ -79,13 +83,24 @@ def child_environment(profile: str) -> dict[str, str]:
 
 
 def _run_children(
-    env: dict[str, str], domains: list[int], shares: list[tuple[int, int]], services: bool
+    env: dict[str, str],
+    domains: list[int],
+    shares: list[tuple[int, int]],
+    services: bool,
+    server: bool = False,
 ) -> tuple[list[float], float]:
-    """Start one child per share (``(first, count)``, in the ROS domain beside it), and
-    once all are done: each one's creation seconds and the wall seconds from starting
-    them. Then kill them all together and remove what they left in shared memory."""
+    """Start one child per share (``(first, count)``, in the ROS domain beside it; with
+    ``server``, a discovery server first and the children its clients), and once all are
+    done: each one's creation seconds and the wall seconds from starting them. Then kill
+    them all together and remove what they left in shared memory."""
     cmd = [sys.executable, __file__, "--child"]
     start = time.perf_counter()
+    started: list[subprocess.Popen] = []
+    if server:
+        port = dds.free_udp_port()
+        argv = dds.server_argv(port, "127.0.0.1")
+        started.append(subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL))
+        env = dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
     children = [
         subprocess.Popen(
             [*cmd, str(first), str(count), str(int(services))],
@@ -95,13 +110,14 @@ def _run_children(
         )
         for domain, (first, count) in zip(domains, shares, strict=True)
     ]  # fmt: skip
+    started += children
     try:
         lines = [proc.stdout.readline() for proc in children]
         wall = time.perf_counter() - start
     finally:
-        for proc in children:
+        for proc in started:
             proc.kill()
-        for proc in children:
+        for proc in started:
             proc.wait()
         for domain in set(domains):
             clean_shared_memory(domain)
@@ -111,12 +127,19 @@ def _run_children(
 
 
 def start_processes(
-    env: dict[str, str], robots: int, processes: int, services: bool, shared: bool
+    env: dict[str, str],
+    robots: int,
+    processes: int,
+    services: bool,
+    shared: bool,
+    server: bool = False,
 ) -> float:
-    """Wall seconds until every one of ``processes`` children created its robots."""
+    """Wall seconds until every one of ``processes`` children created its robots (in one
+    domain if ``shared``, through a discovery server if ``server``)."""
     share = robots // processes
     domains = [FIRST_DOMAIN if shared else FIRST_DOMAIN + 1 + p for p in range(processes)]
-    _, wall = _run_children(env, domains, [(p * share, share) for p in range(processes)], services)
+    shares = [(p * share, share) for p in range(processes)]
+    _, wall = _run_children(env, domains, shares, services, server)
     return wall
 
 
@@ -156,21 +179,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{n:>6} {bare:>12.2f} {full:>11.2f} {ratios[n]:>6.1f}", flush=True)
 
     print(f"\n{robots} nodes with their 6 services in P processes: wall seconds until all exist")
-    print(f"{'P':>4} {'discovering each other':>23} {'isolated (floor)':>17}")
+    print(
+        f"{'P':>4} {'discovering each other':>23} {'discovery server':>17} {'isolated (floor)':>17}"
+    )
     walls = {}
     for p in splits:
         walls[p] = (
             start_processes(env, robots, p, True, True),
+            start_processes(env, robots, p, True, True, server=True),
             start_processes(env, robots, p, True, False),
         )
-        print(f"{p:>4} {walls[p][0]:>23.1f} {walls[p][1]:>17.1f}", flush=True)
+        print(f"{p:>4} {walls[p][0]:>23.1f} {walls[p][1]:>17.1f} {walls[p][2]:>17.1f}", flush=True)
     ref = (ref_before + machine_reference_us()) / 2
-    best_shared = min(w[0] for w in walls.values())
-    best_isolated = min(w[1] for w in walls.values())
+    best_shared, best_server, best_isolated = (min(w[k] for w in walls.values()) for k in range(3))
     ratio_text = " ".join(f"services_ratio_{n}={r:.1f}" for n, r in ratios.items())
     print(
         f"RESULT profile={args.profile} robots={robots} start_s_shared={best_shared:.1f} "
-        f"start_s_isolated={best_isolated:.1f} {ratio_text} machine_ref_us={ref:.2f}"
+        f"start_s_server={best_server:.1f} start_s_isolated={best_isolated:.1f} {ratio_text} "
+        f"machine_ref_us={ref:.2f}"
     )
     return 0
 
