@@ -210,6 +210,7 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
     chromium.get(local(url))
     probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
     dial = chromium.find_element(By.ID, "dial")
+    dial_at = dial.location
 
     def click_east() -> None:
         ActionChains(chromium).move_to_element_with_offset(dial, 65, 0).click().perform()
@@ -221,6 +222,8 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
         time.sleep(0.5)
     results = (browser.page_state(chromium) or {}).get("results")
     assert len(commands) > 1, f"no command from the page; its results: {results}"
+    probe.wait(lambda: (browser.page_state(chromium) or {}).get("results"), 10.0, "a message")
+    assert dial.location == dial_at  # the page's messages never move the dial under the pointer
     east = commands[-1].twist
     assert east.linear.x > 0.8 and abs(east.linear.y) < 0.05
     chromium.screenshot("with-token")
