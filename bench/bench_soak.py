@@ -24,9 +24,9 @@ Checked at the end:
 - messages lost (the publishers' sequence numbers in the bag segments, as the
   recorder counts them) outside those windows (wall time of the kill to the window's
   end; the recorder's own death excuses what it missed until its restart); segments
-  that ``--bag-keep`` deleted cannot be read, so the recorder's own total
-  (``lost_total``, from its log) minus what the kept segments place inside a window
-  counts as outside;
+  that ``--bag-keep`` deleted cannot be read, so the recorder's own total over all
+  its lives (``lost_total``, from the bag's sequences journal, else its log's last
+  line) minus what the kept segments place inside a window counts as outside;
 - processes of the domain and Fast DDS shared-memory files left 15 s after the end;
 - every bag segment left (``--bag-keep``) readable: closed, or cut by a kill of its
   recorder and read up to its last chunk.
@@ -64,7 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aes_ros.ros.bag import SequenceGaps, bag_is_closed, bag_segments, raw_messages
+from aes_ros.ros.bag import SequenceGaps, bag_is_closed, bag_segments, raw_messages, read_journal
 from aes_ros.ros.launch import processes as launch_processes
 from aes_ros.ros.launch.events import read_events
 
@@ -274,12 +274,18 @@ def bag_losses(
     return outside, inside
 
 
-def recorder_lost(log: Path) -> int:
-    """Messages the recorder counted lost over its whole recording (each of its lives
-    that ended cleanly says so in its last line: ``bag …: N messages on T topics, L lost``)."""
+def recorder_lost(log: Path, bag: Path) -> int:
+    """Messages the recorder counted lost over its whole recording, every life of it: the
+    count in the journal beside ``bag`` (each life carries it on; written at every flush
+    and at the end, so a killed life's is at most a flush period behind), else the last
+    ``bag …: N messages on T topics, L lost`` line of its log (a killed life prints none)."""
+    journal = read_journal(bag)
+    if journal is not None:
+        return sum(journal.lost.values())
     if not log.exists():
         return 0
-    return sum(int(m) for m in re.findall(r"messages on \d+ topics, (\d+) lost", log.read_text()))
+    found = re.findall(r"messages on \d+ topics, (\d+) lost", log.read_text())
+    return int(found[-1]) if found else 0
 
 
 def readable(segment: Path) -> bool:
@@ -382,7 +388,7 @@ def judge(
     v.lost_outside, v.lost_inside = bag_losses(segments, wall_windows, v.lost_where)
     # segments --bag-keep deleted are not there to read: the recorder's own count of
     # everything it recorded; what the kept segments cannot place counts as outside
-    v.lost_total = recorder_lost(run_dir / "logs" / "recorder.log")
+    v.lost_total = recorder_lost(run_dir / "logs" / "recorder.log", bag)
     v.lost_outside = max(v.lost_outside, v.lost_total - v.lost_inside)
     deadline = time.monotonic() + 15
     while domain_processes(domain) and time.monotonic() < deadline:

@@ -290,15 +290,36 @@ def sequences_path(path: str | Path) -> Path:
     return path.with_name(f"{path.stem}.sequences.json")
 
 
-def read_sequences(path: str | Path) -> dict[str, tuple[int, int]] | None:
-    """The recording ``path``'s sequences journal (:meth:`Recording.flush` writes it):
-    (sequence number, publish time [ns]) of the last message of each topic on disk;
-    None without one (or a damaged one)."""
+class Journal(NamedTuple):
+    """A recording's sequences journal (:func:`read_journal`)."""
+
+    #: (sequence number, publish time [ns]) of the last message of each topic on disk.
+    last: dict[str, tuple[int, int]]
+    #: Messages lost per topic over every life of the recording, up to that flush.
+    lost: dict[str, int]
+
+
+def read_journal(path: str | Path) -> Journal | None:
+    """The recording ``path``'s sequences journal (:meth:`Recording.flush` writes it:
+    ``{"last": {topic: [n, sent]}, "lost": {topic: k}}``; one of the first format, only
+    the ``last`` mapping, has no losses); None without one (or a damaged one)."""
     try:
         data = json.loads(sequences_path(path).read_text())
-        return {topic: (int(n), int(sent)) for topic, (n, sent) in data.items()}
-    except (OSError, ValueError, TypeError):
+        # topic names start with "/": a key "last" is the current format
+        last, lost = (data["last"], data.get("lost", {})) if "last" in data else (data, {})
+        return Journal(
+            {topic: (int(n), int(sent)) for topic, (n, sent) in last.items()},
+            {topic: int(n) for topic, n in lost.items()},
+        )
+    except (OSError, ValueError, TypeError, AttributeError):
         return None
+
+
+def read_sequences(path: str | Path) -> dict[str, tuple[int, int]] | None:
+    """(sequence number, publish time [ns]) of the last message of each topic on disk,
+    from the recording ``path``'s journal (:func:`read_journal`); None without one."""
+    journal = read_journal(path)
+    return None if journal is None else journal.last
 
 
 def raw_messages(paths: Iterable[str | Path]) -> Iterator[tuple[Any, Any]]:
@@ -345,12 +366,17 @@ class SequenceGaps:
     when it was sent after it, a new publisher (a restarted process starts at 1):
     counting starts over. ``start`` continues from earlier segments
     (:func:`last_sequences`), so that what was lost while no recorder ran counts
-    too. Counting needs one publisher per topic: :meth:`publishers` marks a topic
-    with more as not countable.
+    too; ``lost`` continues the counts of earlier lives of a recording (its journal's,
+    :func:`read_journal`). Counting needs one publisher per topic: :meth:`publishers`
+    marks a topic with more as not countable.
     """
 
-    def __init__(self, start: dict[str, tuple[int, int]] | None = None) -> None:
-        self.lost: dict[str, int] = {}
+    def __init__(
+        self,
+        start: dict[str, tuple[int, int]] | None = None,
+        lost: dict[str, int] | None = None,
+    ) -> None:
+        self.lost: dict[str, int] = {t: n for t, n in (lost or {}).items() if n}
         self.uncountable: set[str] = set()
         #: (sequence number, send time [ns]) of the last message of each topic.
         self.last: dict[str, tuple[int, int]] = dict(start or {})
@@ -438,7 +464,10 @@ class Recording:
       :attr:`gaps` (:class:`SequenceGaps`; ``after``: the last numbers of the
       segments before, :func:`last_sequences`), and every segment gets, when it
       is closed, its own ``aes_swarm.recording`` metadata (:meth:`summary`: its
-      messages and the losses counted while it was open, per topic);
+      messages and the losses counted while it was open, per topic); ``lost``: the
+      losses earlier lives of the recording counted (:func:`read_journal`), from which
+      :attr:`gaps` counts on, so that :meth:`summary_line` and the journal hold the
+      whole recording's;
     - ``split``: once the open segment reaches the :class:`Split`'s size or
       duration, the next message goes into the next segment: the open one is
       closed first (summary, metadata), so every segment but a killed
@@ -466,6 +495,7 @@ class Recording:
         keep: int | None = None,
         segment: int = 0,
         after: dict[str, tuple[int, int]] | None = None,
+        lost: dict[str, int] | None = None,
         say: Callable[[str], None] | None = None,
     ) -> None:
         if keep is not None and keep < 1:
@@ -473,7 +503,7 @@ class Recording:
         self.base = Path(path)
         self.split = split
         self.keep = keep
-        self.gaps = SequenceGaps(after)
+        self.gaps = SequenceGaps(after, lost)
         self.written: dict[str, int] = {}
         self.deleted: list[Path] = []
         self._say = say
@@ -512,6 +542,8 @@ class Recording:
         self._index = index
         self._start_ns = start_ns
         self._fresh = True
+        # a segment's metadata counts its own losses, not those of the segments before
+        # (nor of the recorder's earlier lives)
         self._lost_before = dict(self.gaps.lost)
         self.carried = 0
         for topic, (type_name, _) in self._topics.items():
@@ -602,20 +634,26 @@ class Recording:
 
     def flush(self) -> None:
         """:meth:`BagWriter.flush` of the open segment, then the sequences journal
-        (:func:`read_sequences`: the last number of each topic now on disk, written to
-        a temporary file and renamed), from which a restarted recorder counts what was
-        lost while none ran without reading the segments."""
+        (:func:`read_journal`: the last number of each topic now on disk and the losses
+        counted so far over every life of the recording, written to a temporary file
+        and renamed), from which a restarted recorder counts what was lost while none
+        ran without reading the segments, and continues the loss counts."""
         with self._lock:
             self._bag.flush()
-            journal = sequences_path(self.base)
-            temporary = journal.with_name("." + journal.name + ".tmp")
-            temporary.write_text(json.dumps(self.gaps.last))
-            os.replace(temporary, journal)
+            self._write_journal()
+
+    def _write_journal(self) -> None:
+        journal = sequences_path(self.base)
+        temporary = journal.with_name("." + journal.name + ".tmp")
+        temporary.write_text(json.dumps({"last": self.gaps.last, "lost": self.gaps.lost}))
+        os.replace(temporary, journal)
 
     def close(self) -> None:
-        """Write the open segment's metadata and summary and close it (idempotent)."""
+        """Write the open segment's metadata and summary and close it, then the journal
+        (everything is on disk now; idempotent)."""
         with self._lock:
             self._finish()
+            self._write_journal()
 
     @property
     def closed(self) -> bool:
@@ -647,8 +685,10 @@ class Recording:
             return out
 
     def summary_line(self) -> str:
-        """``bag PATH: N messages on T topics, L lost`` over every segment this recording
-        wrote (with the topics that lost any; the segments when there are several)."""
+        """``bag PATH: N messages on T topics, L lost``: N over every segment this recorder
+        wrote, L over the whole recording, the losses of earlier lives (``lost``, from the
+        journal) included (with the topics that lost any; the segments when there are
+        several)."""
         with self._lock:
             total = sum(self.written.values())
             lost = self.gaps.total()

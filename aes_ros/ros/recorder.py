@@ -24,8 +24,13 @@ read alone (:class:`aes_ros.ros.bag.Recording`).
 Nothing is lost silently. Each message is stored with its publisher's send time
 and sequence number, so gaps in a topic's numbers are messages that did not reach
 the recorder: counted per topic (:class:`aes_ros.ros.bag.SequenceGaps`), written
-into the bag's ``aes_swarm.recording`` metadata and printed at the end. After
-each ``/swarm/poses`` it has written it publishes ``/recorder/progress`` (its
+into each segment's ``aes_swarm.recording`` metadata (the losses while it was open)
+and printed at the end (the whole recording's). A restarted recorder (``--segment``)
+continues the counts of its earlier lives from the journal beside the bag
+(``run.sequences.json``, :func:`aes_ros.ros.bag.read_journal`, rewritten at every
+flush and at the end), so its last line counts the whole recording's losses: also
+those of lives killed before they printed theirs, and what was lost while none ran.
+After each ``/swarm/poses`` it has written it publishes ``/recorder/progress`` (its
 stamp): a lockstep bridge with ``wait_for_recorder`` waits for it before the next
 step, so a recording in lockstep is complete at any load. A bag it cannot write
 (disk full) ends the recorder with exit code 3 and a message; what was written
@@ -62,7 +67,7 @@ from aes_ros.ros.bag import (
     Split,
     last_sequences,
     parse_split,
-    read_sequences,
+    read_journal,
 )
 from aes_ros.ros.cdr import decode_stamp
 from aes_ros.ros.conversions import BadMessageError
@@ -349,13 +354,19 @@ def main(argv: list[str] | None = None) -> int:
     code = 0
     try:
         # the journal if the recording has one: reading the segments takes minutes
-        after = (read_sequences(args.output) or last_sequences(args.after)) if args.after else {}
+        journal = read_journal(args.output) if args.after or args.segment else None
+        after: dict[str, tuple[int, int]] = {}
+        if args.after:
+            after = (journal.last if journal else None) or last_sequences(args.after)
+        # segment 0 is a new recording: an earlier one's losses are not its own
+        lost = journal.lost if journal and args.segment else None
         bag = Recording(
             args.output,
             split=args.split,
             keep=args.keep,
             segment=args.segment,
             after=after,
+            lost=lost,
             say=say,
         )
     except OSError as exc:

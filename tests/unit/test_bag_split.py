@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.bench import bench_module
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
@@ -17,6 +18,7 @@ from std_msgs.msg import Float64
 from aes_ros import scenario
 from aes_ros.cli import main as aes_swarm
 from aes_ros.ros.bag import (
+    Journal,
     Recording,
     Split,
     bag_is_closed,
@@ -26,9 +28,11 @@ from aes_ros.ros.bag import (
     parse_split,
     read_bag,
     read_bags,
+    read_journal,
     read_sequences,
     recording_summary,
     segment_path,
+    sequences_path,
 )
 from aes_ros.ros.launch.plan import LaunchConfig, start_order
 from aes_ros.ros.launch.preflight import expected_bytes
@@ -228,8 +232,63 @@ def test_the_journal_gives_a_restart_the_last_numbers_on_disk(tmp_path: Path) ->
     journal = read_sequences(base)
     assert journal == last_sequences(bag_segments(base))
     assert journal[STREAM] == (50, T0 + 49 * STEP) and journal[LATCHED] == (1, T0)
-    Recording(base).close()
+    fresh = Recording(base)
     assert read_sequences(base) is None
+    fresh.close()
+
+
+def test_a_restart_continues_the_loss_counts_of_the_earlier_lives(tmp_path: Path) -> None:
+    """The journal carries the losses counted so far: a recorder restarted after a kill
+    starts from them, so its last line (and the journal) count the whole recording's,
+    while each segment's metadata counts only the losses while it was open."""
+    base = tmp_path / "run.mcap"
+    rec = start(base, split=Split(seconds=10.0))
+    write_stream(rec, [*range(10), *range(13, 30)])  # 10..12 lost, in segment 0
+    rec.flush()  # then killed in segment 1: it prints no last line
+    journal = read_journal(base)
+    assert journal is not None and journal.lost == {STREAM: 3}
+    again = start(
+        base, T0 + 35 * STEP, split=Split(seconds=10.0), segment=next_segment(base),
+        after=journal.last, lost=journal.lost,
+    )  # fmt: skip
+    # 30..34 lost while none ran, 50 and 51 in segment 2; segment 3 loses nothing
+    write_stream(again, [*range(35, 50), *range(52, 60)])
+    again.close()
+    lost = {i: recording_summary(segment_path(base, i)).get("lost_total") for i in range(4)}
+    assert lost == {0: "3", 1: None, 2: "7", 3: "0"}
+    assert recording_summary(segment_path(base, 2))[STREAM] == "recorded 18, lost 7"
+    assert again.summary_line().endswith(f"on 2 topics, 10 lost ({STREAM} 10)")
+    assert read_journal(base).lost == {STREAM: 10}  # written at the end too
+    with bench_module("bench_soak") as soak:
+        assert soak.recorder_lost(tmp_path / "recorder.log", base) == 10
+
+
+def test_a_journal_of_the_first_format_reads_without_losses(tmp_path: Path) -> None:
+    """The first journals held only the last numbers ({topic: [n, sent]}): read as such,
+    with no losses; a damaged one is none."""
+    base = tmp_path / "run.mcap"
+    sequences_path(base).write_text(f'{{"{STREAM}": [50, 1234]}}')
+    assert read_sequences(base) == {STREAM: (50, 1234)}
+    assert read_journal(base) == Journal({STREAM: (50, 1234)}, {})
+    sequences_path(base).write_text('["damaged"')
+    assert read_journal(base) is None and read_sequences(base) is None
+
+
+def test_the_soak_takes_the_recorders_total_from_the_journal_else_its_last_line(
+    tmp_path: Path,
+) -> None:
+    """bench_soak's lost_total: the counts are cumulative over the recorder's lives, so
+    the journal's sum, or without one the last final line of the log (not their sum)."""
+    base, log = tmp_path / "run.mcap", tmp_path / "recorder.log"
+    with bench_module("bench_soak") as soak:
+        assert soak.recorder_lost(log, base) == 0
+        log.write_text(
+            "bag run.mcap: 10 messages on 2 topics, 3 lost (/a 3)\n"
+            "bag run_1.mcap: 20 messages on 2 topics, 5 lost (/a 5)\n"
+        )
+        assert soak.recorder_lost(log, base) == 5
+        sequences_path(base).write_text('{"last": {}, "lost": {"/a": 6, "/b": 2}}')
+        assert soak.recorder_lost(log, base) == 8
 
 
 # ----------------------------------------------------------------------------- launch
