@@ -10,6 +10,9 @@ from pathlib import Path
 
 import pytest
 
+# alone: a benchmark measures rates and CPU
+pytestmark = pytest.mark.alone
+
 REPO = Path(__file__).resolve().parents[2]
 
 

@@ -26,6 +26,7 @@ def bench() -> Iterator[ModuleType]:
         yield module
 
 
+@pytest.mark.alone  # a benchmark: rates, latency, CPU
 def test_quick_run_tracks_every_robot(ros_env, tmp_path) -> None:
     out = subprocess.run(
         [sys.executable, str(BENCH), "--quick", "--robots", "9", "--camera", "640x480",

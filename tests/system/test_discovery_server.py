@@ -187,6 +187,7 @@ def kill(ros_env: dict[str, str], needle: str) -> float:
     return time.monotonic()
 
 
+@pytest.mark.alone  # judges recovery times
 def test_a_killed_server_is_respawned_and_new_endpoints_match_through_it(
     launch, spawn, ros_env
 ) -> None:

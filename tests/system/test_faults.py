@@ -185,6 +185,7 @@ def check_segments(bag: Path) -> None:
 # ----------------------------------------------------------------------------- tests
 
 
+@pytest.mark.alone  # judges recovery times
 def test_killed_processes_are_restarted_and_the_run_completes(spawn, probe, ros_env, tmp_path):
     out, bag = tmp_path / "out", tmp_path / "run.mcap"
     arrivals = Arrivals(probe)
@@ -254,6 +255,7 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
           f"{len(partial.times)} samples on disk")  # fmt: skip
 
 
+@pytest.mark.alone  # judges recovery times
 def test_lockstep_goes_on_without_a_dead_robot_host_and_counts_recording_losses(
     spawn, probe, ros_env, tmp_path
 ):

@@ -52,6 +52,9 @@ from aes_ros.ros.launch.plan import (
 )
 from aes_ros.ros.launch.processes import executable
 
+# alone: network namespaces and injected packet loss, convergence judged in time
+pytestmark = pytest.mark.alone
+
 N = 16
 #: Sim time [s] sampled after every robot moves, and the tail [s] the checks average.
 DURATION, TAIL = 20.0, 6.0

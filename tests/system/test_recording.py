@@ -143,6 +143,7 @@ def test_launch_records_every_message_and_closes_the_bag_on_a_signal(
     print(f"\n{sig.name}: {total} messages in the bag, 0 lost, {len(steps)} steps")
 
 
+@pytest.mark.alone  # loads the machine until messages are lost
 def test_real_time_losses_are_counted_exactly(spawn, ros_env, tmp_path) -> None:
     """16 robots in real time at 50 Hz with two busy loops: the recorder may fall
     behind; every message it missed is counted, per topic, and the counts are exact."""

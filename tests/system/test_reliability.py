@@ -20,6 +20,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 from geometry_msgs.msg import Vector3Stamped
 from helpers.messages import seconds
 from helpers.probe import Probe
@@ -208,6 +209,7 @@ def restart_and_check_rejoined(
     return t_back, t_in, t_move
 
 
+@pytest.mark.alone  # judges recovery times
 def test_killed_robots_stop_are_left_out_and_rejoin(spawn, ros_env, probe) -> None:
     """20 robots (linear setup, real time); the host of robots 18 and 19 (10 %) is
     killed with SIGKILL. The bridge stops them within cmd_timeout; their neighbours'
@@ -320,6 +322,7 @@ def restart_bridge_and_check_north_again(
     return bridge
 
 
+@pytest.mark.alone  # judges recovery times
 def test_supervisor_and_bridge_restarts(spawn, ros_env, probe) -> None:
     """10 robots (linear setup, which drives west), the supervisor told to drive north.
     Supervisor killed with SIGKILL: the robots keep the last desired velocity and go

@@ -407,6 +407,7 @@ def test_lockstep_with_supervisor_equals_offline_model(spawn, probe):
     assert np.max(np.abs(yaw - ref_yaw)) < 1e-9
 
 
+@pytest.mark.alone  # 1000 robots in one host
 def test_a_large_host_logs_every_robots_counts_before_it_tears_them_down(spawn, probe):
     """At SIGINT a host logs every robot's published counts (what a recording is checked
     against) before it destroys the robots one by one, which rmw makes slow in a large

@@ -10,6 +10,11 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
+# alone: 50 robots load both cores, and the recovery windows are judged
+pytestmark = pytest.mark.alone
+
 REPO = Path(__file__).resolve().parents[2]
 #: [MB/h]: the leaks of issue #23 measured 270-340 at this size, flat processes < 30.
 MAX_SLOPE = 150.0

@@ -34,6 +34,9 @@ from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
 from tracker_node.calibration import calibrate, corner_layout, save_layout
 
+# alone: the camera renders and the tracker detects on both cores
+pytestmark = pytest.mark.alone
+
 #: The arena of the closed-loop runs: the combined scenario's 16 robots drift west about
 #: 0.6 m in 15 s (0.04 m/s) without reaching a wall, so the arena keeper never acts and
 #: cannot make the two runs differ by when it turns them (2.3 mm a pixel at 1280 px).

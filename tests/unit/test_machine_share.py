@@ -1,0 +1,64 @@
+"""helpers.machine_share: under ``pytest -n`` a test marked ``alone`` runs with no other
+beside it, the others run together, and a waiting ``alone`` test goes before new ones."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+
+import pytest
+from helpers.machine_share import RUN_VARIABLE, machine_share
+
+
+@pytest.fixture
+def parallel_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv(RUN_VARIABLE, uuid.uuid4().hex)
+
+
+def hold(alone: bool, seconds: float, log: list[tuple[str, str]], name: str) -> threading.Thread:
+    """A thread that holds its share for ``seconds`` and logs when it started and ended."""
+
+    def run() -> None:
+        with machine_share(alone):
+            log.append(("start", name))
+            time.sleep(seconds)
+            log.append(("end", name))
+
+    thread = threading.Thread(target=run)
+    thread.start()
+    return thread
+
+
+def test_shared_tests_run_together(parallel_run: None) -> None:
+    log: list[tuple[str, str]] = []
+    threads = [hold(False, 0.3, log, "a"), hold(False, 0.3, log, "b")]
+    for thread in threads:
+        thread.join()
+    assert [event for event, _ in log] == ["start", "start", "end", "end"]
+
+
+def test_an_alone_test_waits_for_the_running_ones_and_goes_before_new_ones(
+    parallel_run: None,
+) -> None:
+    log: list[tuple[str, str]] = []
+    first = hold(False, 0.4, log, "shared")
+    time.sleep(0.1)
+    alone = hold(True, 0.3, log, "alone")
+    time.sleep(0.1)
+    later = hold(False, 0.1, log, "later")  # arrives while the alone test waits
+    for thread in (first, alone, later):
+        thread.join()
+    assert log == [
+        ("start", "shared"), ("end", "shared"), ("start", "alone"), ("end", "alone"),
+        ("start", "later"), ("end", "later"),
+    ]  # fmt: skip
+
+
+def test_without_parallel_workers_nothing_is_locked(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(RUN_VARIABLE, raising=False)
+    log: list[tuple[str, str]] = []
+    threads = [hold(True, 0.3, log, "a"), hold(True, 0.3, log, "b")]
+    for thread in threads:
+        thread.join()
+    assert [event for event, _ in log] == ["start", "start", "end", "end"]
