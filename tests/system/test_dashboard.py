@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import csv
 import os
 import re
 import signal
@@ -208,6 +209,10 @@ def test_twenty_viewers_do_not_slow_the_swarm(spawn, probe, tmp_path):
     assert min(rates) >= 10.0
     launcher.send_signal(signal.SIGINT)
     assert launcher.wait(60) == 0
+    # no hole at the start while the dashboard started (the launcher kept sampling)
+    with open(tmp_path / "out" / "metrics.csv", newline="") as fh:
+        t = np.array([float(row["t"]) for row in csv.DictReader(fh)])
+    assert len(t) > 100 and np.diff(t).max() < 0.25, f"largest gap {np.diff(t).max():.2f} s"
     # viewers and /swarm/markers (the recorder subscribes) share one frame a tick:
     # fewer frames made than sent and published together
     log = (tmp_path / "out" / "logs" / f"{names.DASHBOARD_NODE}.log").read_text()

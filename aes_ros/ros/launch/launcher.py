@@ -231,7 +231,7 @@ class Launcher:
             self._wait_first_poses(bridge)
         if order.dashboard is not None:  # and its URL, from its ready line
             dashboard = self.procs.start(*order.dashboard)
-            dashboard.wait_for(names.DASHBOARD_READY, 30.0, self._stopping)
+            dashboard.wait_for(names.DASHBOARD_READY, 30.0, self._sampling)
             if (url := dashboard.line_after(names.DASHBOARD_READY)) is not None:
                 self.say(f"launch: dashboard at {url}")
         state = self.procs.log_dir / "world_state.npz"
@@ -276,6 +276,13 @@ class Launcher:
 
     def _stopping(self) -> bool:
         return self.stop_reason is not None
+
+    def _sampling(self) -> bool:
+        """A wait's poll once the poses flow: keep sampling them (a wait without it left
+        a hole of up to 2 s at the start of metrics.csv while the dashboard started on a
+        loaded machine); True once the launch is stopping."""
+        self.monitor.spin_once(0.05)
+        return self._stopping()
 
     def _check_start(self) -> None:
         """Early on: a second swarm that discovery shows only now (before any fault:
