@@ -3,9 +3,13 @@ beside it, the others run together, and a waiting ``alone`` test goes before new
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 import threading
 import time
 import uuid
+from pathlib import Path
 
 import pytest
 from helpers.machine_share import RUN_VARIABLE, machine_share
@@ -62,3 +66,28 @@ def test_without_parallel_workers_nothing_is_locked(monkeypatch: pytest.MonkeyPa
     for thread in threads:
         thread.join()
     assert [event for event, _ in log] == ["start", "start", "end", "end"]
+
+
+def test_an_alone_test_keeps_the_lock_for_the_next_alone_one(
+    parallel_run: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The other worker (a process) waits through two alone tests in a row, not between."""
+    tests = Path(__file__).resolve().parents[1]
+    other_worker = [
+        sys.executable, "-c",
+        "from helpers.machine_share import machine_share\n"
+        "with machine_share(False):\n    print('ran', flush=True)",
+    ]  # fmt: skip
+    env = {**os.environ, "PYTHONPATH": str(tests)}
+    with machine_share(True, keep=True):
+        pass
+    other = subprocess.Popen(other_worker, env=env, stdout=subprocess.PIPE, text=True)
+    try:
+        time.sleep(1.0)
+        assert other.poll() is None  # kept for the next alone test: the other one waits
+        with machine_share(True, keep=False):
+            assert other.poll() is None
+        assert other.communicate(timeout=10)[0] == "ran\n"
+    finally:
+        other.kill()
+        other.wait()
