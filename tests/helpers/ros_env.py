@@ -20,6 +20,7 @@ from pathlib import Path
 
 from aes_ros.ros.discovery import set_environ
 from aes_ros.ros.launch.processes import Child, ProcessSet, domain_processes
+from aes_ros.ros.launch.shared_memory import domain_port_files
 
 #: Default wait [s] for a reply, a match or a service: generous, since other tests
 #: may load the 2 cores.
@@ -121,15 +122,20 @@ def find_process(domain: str, needle: str) -> int:
     return found[0]
 
 
-def shm_files() -> set[str]:
-    """Fast DDS's shared-memory files (/dev/shm)."""
-    return {p.name for p in Path("/dev/shm").glob("*fastrtps*")}
+def shm_files(domain: int | None = None) -> set[str]:
+    """Fast DDS's shared-memory files (/dev/shm); with ``domain``, those of its own ports
+    only: tests beside this one (``pytest -n``) make and leave files of their domains, and
+    of the ports below 7400 that every domain shares, which no test can tell apart."""
+    if domain is None:
+        return {p.name for p in Path("/dev/shm").glob("*fastrtps*")}
+    ports = domain_port_files(domain)
+    return {p.name for port, files in ports.items() if port >= 7400 for p in files}
 
 
-def abandoned_shm(before: set[str]) -> set[str]:
-    """Fast DDS shared-memory files made since ``before`` that no live process maps:
-    what processes that are gone left behind (a file the test's own probe still maps,
-    as a peer of a dead process, is not abandoned yet)."""
+def abandoned_shm(before: set[str], domain: int | None = None) -> set[str]:
+    """Fast DDS shared-memory files (of ``domain``) made since ``before`` that no live
+    process maps: what processes that are gone left behind (a file the test's own probe
+    still maps, as a peer of a dead process, is not abandoned yet)."""
     mapped: set[str] = set()
     for maps in Path("/proc").glob("[0-9]*/maps"):
         try:
@@ -137,7 +143,7 @@ def abandoned_shm(before: set[str]) -> set[str]:
                           if "/dev/shm/" in line)  # fmt: skip
         except OSError:
             continue
-    return {name for name in shm_files() - before if name not in mapped}
+    return {name for name in shm_files(domain) - before if name not in mapped}
 
 
 def _domain_processes(domain: str) -> list[tuple[int, str]]:

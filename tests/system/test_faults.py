@@ -220,7 +220,8 @@ def test_killed_processes_are_restarted_and_the_run_completes(spawn, probe, ros_
 
 def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_env, tmp_path):
     out = tmp_path / "out"
-    shm_before = shm_files()
+    domain = int(ros_env["ROS_DOMAIN_ID"])
+    shm_before = shm_files(domain)
     launcher = spawn.start(
         *launch_cmd(out, "--duration", "60", "--record", str(tmp_path / "run.mcap")),
         name="launch",
@@ -232,7 +233,7 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     t_kill = probe.now
     launcher.wait(10)
     assert_no_orphans(ros_env, timeout=20.0)
-    assert abandoned_shm(shm_before) == set(), "shared memory left behind"
+    assert abandoned_shm(shm_before, domain) == set(), "shared memory left behind"
 
     rows = metrics_rows(out / "metrics.csv")  # complete rows, the usual reader
     assert all(len(r) == 7 and None not in r.values() for r in rows)

@@ -34,9 +34,6 @@ from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
 from tracker_node.calibration import calibrate, corner_layout, save_layout
 
-# alone: the camera renders and the tracker detects on both cores
-pytestmark = pytest.mark.alone
-
 #: The arena of the closed-loop runs: the combined scenario's 16 robots drift west about
 #: 0.6 m in 15 s (0.04 m/s) without reaching a wall, so the arena keeper never acts and
 #: cannot make the two runs differ by when it turns them (2.3 mm a pixel at 1280 px).
@@ -51,6 +48,7 @@ def mean_metrics(out: Path) -> dict[str, float]:
     }
 
 
+@pytest.mark.alone  # the camera renders and the tracker detects on both cores
 def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, tmp_path) -> None:
     def run(name: str, *extra: str) -> tuple[dict[str, float], str]:
         proc = spawn.start(
@@ -256,6 +254,7 @@ def test_a_calibration_file_with_a_wrong_field_exits_naming_it(spawn, scene, tmp
     assert "K:" in spawn.log(proc).read_text()
 
 
+@pytest.mark.alone  # the camera renders and the tracker detects on both cores
 def test_a_real_arena_launch_runs_from_a_camera_without_a_bridge(spawn, probe, tmp_path):
     """``--world none``: no bridge, no simulated camera; the tracker reads the "camera"
     (a video file standing in for /dev/video0) with a calibration made beforehand,
