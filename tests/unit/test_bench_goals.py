@@ -64,12 +64,14 @@ def test_the_baseline_runs_at_the_result_size_up_to_its_limit_else_at_the_refere
 
 
 def run_main(
-    bench: ModuleType, monkeypatch, tmp_path: Path, *argv: str, naive_fails: bool = False
-) -> tuple[list, str]:
-    """``bench_ros.main`` with every measurement faked; returns what it measured and printed."""
+    bench: ModuleType, monkeypatch, tmp_path: Path, *argv: str, naive_fails: bool = False,
+    measure: Any = None,
+) -> tuple[list, str]:  # fmt: skip
+    """``bench_ros.main`` with every measurement faked (this design's by ``measure`` if
+    given); returns what it measured and printed."""
     measured: list[tuple] = []
 
-    def measure(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
+    def measure_aes(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
         measured.append(("aes", robots, rate, source))
         us = {"poses": 200.0, "odom": 500.0}[source] * (0.5 if robots == 1000 else 1.0)
         return row(bench, robots, rate, source, us=us, median=rate)
@@ -80,7 +82,7 @@ def run_main(
             raise RuntimeError("the naive swarm did not start within 120 s")
         return row(bench, robots, rate, "odom", us=3000.0, median=6.0, design="naive")
 
-    monkeypatch.setattr(bench, "measure", measure)
+    monkeypatch.setattr(bench, "measure", measure or measure_aes)
     monkeypatch.setattr(bench, "measure_naive", measure_naive)
     monkeypatch.setattr(bench, "physics_rtf", lambda seconds: 3.0)
     monkeypatch.setattr(bench, "machine_reference_us", lambda: 10.0)
@@ -164,15 +166,8 @@ def test_discovery_modes_are_measured_interleaved_and_judged_side_by_side(
         return row(bench, robots, rate, source, us=200.0, median=median, start=start + run,
                    discovery=discovery, run=run)  # fmt: skip
 
-    monkeypatch.setattr(bench, "measure", measure)
-    monkeypatch.setattr(bench, "physics_rtf", lambda seconds: 3.0)
-    monkeypatch.setattr(bench, "machine_reference_us", lambda: 10.0)
-    monkeypatch.setattr(bench, "plot", lambda rows, path: None)
-    printed: list[str] = []
-    monkeypatch.setattr("builtins.print", lambda *a, **k: printed.append(" ".join(map(str, a))))
     argv = ["--robots", "1000", "--rates", "20", "--discovery", "simple,server", "--repeat", "2"]
-    assert bench.main([*argv, "--no-baseline", "--out", str(tmp_path)]) == 0
-    text = "\n".join(printed)
+    _, text = run_main(bench, monkeypatch, tmp_path, *argv, "--no-baseline", measure=measure)
     assert measured == [(1, "simple"), (1, "server"), (2, "simple"), (2, "server")]
     assert "  simple  moving after 44.0/45.0 s; answered 17.6/17.6 Hz" in text
     assert "  server  moving after 13.0/14.0 s; answered 19.5/19.5 Hz" in text

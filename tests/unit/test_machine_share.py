@@ -34,9 +34,19 @@ def hold(alone: bool, seconds: float, log: list[tuple[str, str]], name: str) -> 
     return thread
 
 
-def test_shared_tests_run_together(parallel_run: None) -> None:
+@pytest.mark.parametrize(
+    ("alone", "parallel"), [(False, True), (True, False)],
+    ids=["shared tests under pytest -n", "any tests without it"],
+)  # fmt: skip
+def test_tests_run_together_when_they_may(
+    alone: bool, parallel: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    if parallel:
+        monkeypatch.setenv(RUN_VARIABLE, uuid.uuid4().hex)
+    else:
+        monkeypatch.delenv(RUN_VARIABLE, raising=False)
     log: list[tuple[str, str]] = []
-    threads = [hold(False, 0.3, log, "a"), hold(False, 0.3, log, "b")]
+    threads = [hold(alone, 0.3, log, "a"), hold(alone, 0.3, log, "b")]
     for thread in threads:
         thread.join()
     assert [event for event, _ in log] == ["start", "start", "end", "end"]
@@ -57,15 +67,6 @@ def test_an_alone_test_waits_for_the_running_ones_and_goes_before_new_ones(
         ("start", "shared"), ("end", "shared"), ("start", "alone"), ("end", "alone"),
         ("start", "later"), ("end", "later"),
     ]  # fmt: skip
-
-
-def test_without_parallel_workers_nothing_is_locked(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delenv(RUN_VARIABLE, raising=False)
-    log: list[tuple[str, str]] = []
-    threads = [hold(True, 0.3, log, "a"), hold(True, 0.3, log, "b")]
-    for thread in threads:
-        thread.join()
-    assert [event for event, _ in log] == ["start", "start", "end", "end"]
 
 
 def test_an_alone_test_keeps_the_lock_for_the_next_alone_one(
