@@ -24,7 +24,7 @@ from pathlib import Path
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
-from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_ABOVE, parse_address
+from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_FROM, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
 from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
 
@@ -100,8 +100,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "discovery server (started as one more process of the launch unless "
         "--discovery-server is given; ros2 commands then need the environment it prints, "
         "also in OUT/ros_env.sh); auto (default): a server with --discovery-server or "
-        "--discovery-port"
-        + (f" or above {DISCOVERY_SERVER_ABOVE} robots" if DISCOVERY_SERVER_ABOVE else ""),
+        f"--discovery-port, or from {DISCOVERY_SERVER_FROM} robots in more than one process "
+        "(measured: docs/performance.md)",
     )  # fmt: skip
     p.add_argument(
         "--discovery-server", type=_address, default=None, metavar="HOST:PORT",

@@ -48,11 +48,14 @@ from pathlib import Path
 
 #: What ``--discovery`` may ask for.
 DISCOVERY_MODES = ("auto", "simple", "server")
-#: ``auto`` uses a discovery server above this many robots; None: not by size. Not measured
-#: yet (bench/bench_startup.py and bench/bench_ros.py in both modes will put the crossover
-#: here, issue #24): until then ``auto`` keeps the simple discovery every figure of
-#: docs/performance.md was measured with, and uses a server only when one is asked for.
-DISCOVERY_SERVER_ABOVE: int | None = None
+#: ``auto`` uses a discovery server from this many robots when they run in more than one
+#: process. Measured on two cores (bench/bench_ros.py, docs/performance.md, "Through a
+#: discovery server"), 1000 robots at 20 Hz: in two robot hosts every robot moved after
+#: 18-24 s through a server against 50-61 s with simple discovery, answering 15-18 Hz
+#: against 9-10 Hz; in one host (the ``auto`` layout on two cores) a server changed
+#: nothing (46-62 s either way), nor at 100 robots, 50 Hz (4 s, 49.6 against 50.0 Hz).
+#: Where a server gains nothing, simple discovery keeps ``ros2`` working without setup.
+DISCOVERY_SERVER_FROM = 1000
 #: The variables that make a participant a client (super client) of a discovery server.
 SERVER_VARIABLE = "ROS_DISCOVERY_SERVER"
 SUPER_CLIENT_VARIABLE = "ROS_SUPER_CLIENT"
@@ -85,14 +88,17 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def resolved_mode(mode: str, num_robots: int, server: str | None = None) -> str:
-    """``simple`` or ``server``: what ``mode`` means for ``num_robots`` robots.
+def resolved_mode(
+    mode: str, num_robots: int, server: str | None = None, robot_processes: int = 1
+) -> str:
+    """``simple`` or ``server``: what ``mode`` means for ``num_robots`` robots in
+    ``robot_processes`` processes.
 
-    ``auto`` is ``server`` above :data:`DISCOVERY_SERVER_ABOVE` robots or when an existing
-    server is given, else ``simple``."""
+    ``auto`` is ``server`` when an existing server is given, or from
+    :data:`DISCOVERY_SERVER_FROM` robots in more than one process; else ``simple``."""
     if mode == "auto":
-        above = DISCOVERY_SERVER_ABOVE
-        return "server" if server or (above is not None and num_robots > above) else "simple"
+        large = robot_processes > 1 and num_robots >= DISCOVERY_SERVER_FROM
+        return "server" if server or large else "simple"
     return mode
 
 

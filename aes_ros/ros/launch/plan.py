@@ -84,11 +84,11 @@ class LaunchConfig:
         ``camera_source`` (a device or a video file) with ``calibration`` (a file of
         ``aes-swarm calibrate``); needs ``tracking="camera"``.
     discovery : ``simple`` (Fast DDS's default), ``server`` (the processes are clients
-        of a discovery server; :mod:`aes_ros.ros.discovery`) or ``auto`` (a server above
-        :data:`~aes_ros.ros.discovery.DISCOVERY_SERVER_ABOVE` robots or with
-        ``discovery_server``). discovery_server : ``HOST:PORT`` of an existing server to
-        use (e.g. on another host); without it a server mode launch starts its own, on
-        ``discovery_port`` (None: a free UDP port).
+        of a discovery server; :mod:`aes_ros.ros.discovery`) or ``auto`` (a server from
+        :data:`~aes_ros.ros.discovery.DISCOVERY_SERVER_FROM` robots in more than one
+        process, or with ``discovery_server`` or ``discovery_port``). discovery_server :
+        ``HOST:PORT`` of an existing server to use (e.g. on another host); without it a
+        server mode launch starts its own, on ``discovery_port`` (None: a free UDP port).
     """
 
     scenario: Scenario
@@ -281,7 +281,9 @@ def resolved_discovery(config: LaunchConfig) -> str:
     (:func:`aes_ros.ros.discovery.resolved_mode`; a given port means a server too)."""
     given = config.discovery_server or config.discovery_port is not None
     mode = "server" if config.discovery == "auto" and given else config.discovery
-    return dds.resolved_mode(mode, config.num_robots, config.discovery_server)
+    return dds.resolved_mode(
+        mode, config.num_robots, config.discovery_server, robot_process_count(config)
+    )
 
 
 class ProcessSpec(NamedTuple):
@@ -464,6 +466,14 @@ def resolved_layout(config: LaunchConfig) -> str:
     if config.layout != "auto":
         return config.layout
     return auto_layout(config.num_robots, config.scenario.dt, config.cores)
+
+
+def robot_process_count(config: LaunchConfig) -> int:
+    """How many processes run the robots (:func:`robot_commands`)."""
+    layout, n = resolved_layout(config), config.num_robots
+    if layout == "per-robot":
+        return n
+    return 1 if layout == "single" else min(n, config.cores or os.cpu_count() or 1)
 
 
 def auto_layout(num_robots: int, dt: float, cores: int | None = None) -> str:
