@@ -278,10 +278,14 @@ class Launcher:
         return self.stop_reason is not None
 
     def _sampling(self) -> bool:
-        """A wait's poll once the poses flow: keep sampling them (a wait without it left
-        a hole of up to 2 s at the start of metrics.csv while the dashboard started on a
-        loaded machine); True once the launch is stopping."""
-        self.monitor.spin_once(0.05)
+        """A wait's poll once the poses flow: take every sample that came, for 50 ms,
+        then True once the launch is stopping. Without it the monitor's queue (keep the
+        last 100: 2 s at 50 Hz) overflowed while the dashboard started on a loaded
+        machine, a hole at the start of metrics.csv; one sample a poll (one ``spin_once``)
+        kept it full and took one sample in five."""
+        end = time.monotonic() + 0.05
+        while time.monotonic() < end:
+            self.monitor.spin_once(0.01)
         return self._stopping()
 
     def _check_start(self) -> None:
