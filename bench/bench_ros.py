@@ -306,12 +306,12 @@ def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row
                     f"{len(monitor.times)} pose samples; logs in {work / 'logs'}"
                 )
         start_s = time.monotonic() - t0
-        _spin(monitor, warmup)
+        monitor.spin_for(warmup)
         monitor.bridge_stats()
         pids = {c.name: c.proc.pid for c in children}
         cpu0 = {name: cpu_seconds(pid) for name, pid in pids.items()}
         w0 = time.monotonic()
-        _spin(monitor, window)
+        monitor.spin_for(window)
         stats = monitor.bridge_stats()
         wall = time.monotonic() - w0
         cpu = {name: 100.0 * (cpu_seconds(pid) - cpu0[name]) / wall for name, pid in pids.items()}
@@ -328,12 +328,6 @@ def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row
         per_robot_step(cpu["sim_bridge"] + cpu["supervisor"] + robot_cpu, stats, robots),
         "naive",
     )  # fmt: skip
-
-
-def _spin(monitor, seconds: float) -> None:
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
-        monitor.spin_once(0.05)
 
 
 def physics_rtf(robots: int = 100, physics_rate: float = 240.0, seconds: float = 10.0) -> float:

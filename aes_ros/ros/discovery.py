@@ -272,6 +272,16 @@ def serve(port: int, listen: str) -> None:
     os.execve(program, argv, server_environment(dict(os.environ), program))
 
 
+def set_environ(values: dict[str, str | None]) -> None:
+    """Set each variable of ``values`` in ``os.environ`` (None: remove it), as
+    :meth:`Discovery.participant_variables` gives them."""
+    for name, value in values.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
+
+
 def main(argv: list[str] | None = None) -> int:
     """``serve``: run a server; ``port``: print a free UDP port; ``env ADDRESS``: print
     the shell lines for a swarm on that server (``scripts/start_swarm.sh`` uses all three)."""
@@ -298,13 +308,3 @@ def main(argv: list[str] | None = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
-
-
-def set_environ(values: dict[str, str | None]) -> None:
-    """Set each variable of ``values`` in ``os.environ`` (None: remove it), as
-    :meth:`Discovery.participant_variables` gives them."""
-    for name, value in values.items():
-        if value is None:
-            os.environ.pop(name, None)
-        else:
-            os.environ[name] = value

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from aes_ros.ros.discovery import set_environ
 from aes_ros.ros.launch.processes import Child, ProcessSet, domain_processes
-from aes_ros.ros.launch.shared_memory import domain_port_files
+from aes_ros.ros.launch.shared_memory import domain_port_files, mapped_files
 
 #: Default wait [s] for a reply, a match or a service: generous, since other tests
 #: may load the 2 cores.
@@ -136,13 +136,7 @@ def abandoned_shm(before: set[str], domain: int | None = None) -> set[str]:
     """Fast DDS shared-memory files (of ``domain``) made since ``before`` that no live
     process maps: what processes that are gone left behind (a file the test's own probe
     still maps, as a peer of a dead process, is not abandoned yet)."""
-    mapped: set[str] = set()
-    for maps in Path("/proc").glob("[0-9]*/maps"):
-        try:
-            mapped.update(line.rsplit("/", 1)[-1] for line in maps.read_text().splitlines()
-                          if "/dev/shm/" in line)  # fmt: skip
-        except OSError:
-            continue
+    mapped = {Path(path).name for path in mapped_files()}
     return {name for name in shm_files(domain) - before if name not in mapped}
 
 

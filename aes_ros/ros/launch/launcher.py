@@ -283,9 +283,7 @@ class Launcher:
         last 100: 2 s at 50 Hz) overflowed while the dashboard started on a loaded
         machine, a hole at the start of metrics.csv; one sample a poll (one ``spin_once``)
         kept it full and took one sample in five."""
-        end = time.monotonic() + 0.05
-        while time.monotonic() < end:
-            self.monitor.spin_once(0.01)
+        self.monitor.spin_for(0.05)
         return self._stopping()
 
     def _check_start(self) -> None:

@@ -301,6 +301,13 @@ class Monitor:
         """Handle what has arrived, waiting at most ``timeout`` s for it."""
         self.executor.spin_once(timeout_sec=timeout)
 
+    def spin_for(self, seconds: float) -> None:
+        """Handle everything that arrives for ``seconds`` s (one ``spin_once`` handles
+        one message: a caller that sleeps between them lets the poses queue overflow)."""
+        end = time.monotonic() + seconds
+        while (left := end - time.monotonic()) > 0:
+            self.spin_once(min(0.05, left))
+
     def call(self, srv_type: Any, name: str, request: Any, timeout: float) -> Any:
         """Call service ``name`` and return its response; LaunchError if nobody offers
         it or it does not answer within ``timeout`` s (spinning meanwhile).

@@ -515,8 +515,7 @@ def robot_commands(
             )
             for i in range(n)
         ]
-    parts = 1 if layout == "single" else (config.cores or os.cpu_count() or 1)
-    blocks = split_robots(n, parts)
+    blocks = split_robots(n, robot_process_count(config))
     out = []
     for h, ids in enumerate(blocks):
         params: dict[str, Any] = {
