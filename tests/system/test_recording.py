@@ -272,6 +272,8 @@ def test_camera_frames_are_recorded_only_when_asked_and_at_most_at_the_rate(
     assert any(topic == names.CAMERA_INFO for topic, _, _ in read_bag(bag))
 
 
+@pytest.mark.alone  # 3 s segments of wall time: a lockstep slowed by a test beside it
+# can stall for a segment's length, leaving a segment without a control step
 def test_split_recording_keeps_the_newest_complete_segments(spawn, ros_env, tmp_path) -> None:
     """4 robots in lockstep (a lossless recording) for 10 s, a segment every 3 s of wall
     time, the newest 2 kept: each kept segment is a closed bag that the mcap library
