@@ -117,6 +117,7 @@ def test_the_page_shows_and_steers_the_swarm(spawn, probe, chromium, tmp_path):
     assert launcher.wait(60) == 0
 
 
+@pytest.mark.alone  # checks the pending note between the drag and the swarm's answer
 def test_the_page_keeps_and_shows_the_swarms_rotation(spawn, probe, chromium, tmp_path):
     """Combined scenario (ω = −0.7 rad/s): the page shows ω; dragging the dial
     changes the direction and leaves ω alone; a choice is shown pending until the
