@@ -357,7 +357,9 @@ def chaos_kill(domain: str, rng: random.Random, now: float) -> Kill:
                if any(name.startswith(t) for t in CHAOS_TARGETS)]  # fmt: skip
     pid, name = rng.choice(sorted(choices))
     os.kill(pid, signal.SIGKILL)
-    print(f"  t = {now:6.0f} s  killed {name} (pid {pid})", flush=True)
+    # the wall clock too: the losses outside recovery are placed by it
+    print(f"  t = {now:6.0f} s  killed {name} (pid {pid}) at {time.strftime('%H:%M:%S')}",
+          flush=True)  # fmt: skip
     return Kill(time.time(), now, name, pid)
 
 
