@@ -253,6 +253,45 @@ PARAMS: dict[str, ParamSpec] = {
             low=0.0,
             high=100.0,
         ),
+        # --- perception error of an overhead tracker (offline simulator; aes_ros.perception) ---
+        _p(
+            "perception_sigma",
+            0.0,
+            "float",
+            "tracker position noise σ_p: Gaussian, per axis, added to every perceived position "
+            "at each camera update (headings exact); 0: exact positions",
+            "m",
+            low=0.0,
+            high=0.1,
+        ),
+        _p(
+            "perception_delay",
+            0.0,
+            "float",
+            "tracker latency τ: robots see the poses as they were round(τ/Δt) steps ago",
+            "s",
+            low=0.0,
+            high=2.0,
+        ),
+        _p(
+            "perception_rate",
+            0.0,
+            "float",
+            "camera frame rate f_cam: poses refreshed every round(1/(f_cam·Δt)) steps and held "
+            "in between; 0: every control step",
+            "Hz",
+            low=0.0,
+            high=1000.0,
+        ),
+        _p(
+            "perception_miss",
+            0.0,
+            "float",
+            "probability that a camera update misses a robot, which then keeps its last "
+            "perceived pose",
+            low=0.0,
+            high=0.99,
+        ),
         # --- arena keeper (supervisor; aes_ros.arena) ---
         _p(
             "arena",

@@ -1,0 +1,260 @@
+"""Perception error: what an overhead camera and marker tracker show the robots (issue #25).
+
+A Mona has no positioning of its own: in a lab every robot learns the poses, its
+own included, from a tracker that publishes one pose list (``/swarm/poses``,
+index = robot id). The robots therefore see the world through one shared
+**perceived frame** per run, perceived positions P̃ (N, 2) [m; odom] and
+headings Θ̃ (N,) [rad]:
+
+- a robot computes its spring force, the drives and its rotation term (E1–E4)
+  from P̃, its own entry and its neighbours'; a rotation centre that is the
+  live centroid is the centroid of P̃;
+- its commands (E5, E6) project that force onto its perceived heading Θ̃_i;
+- the unicycle step then moves the *true* state with those commands, along the
+  true heading, as physics would. Metrics (E7–E9, centroid) stay on the true
+  state: they describe what the swarm does.
+
+Four parameters (:data:`aes_ros.params.PARAMS`), all off by default:
+
+- ``perception_sigma`` σ_p [m]: Gaussian noise, std σ_p per axis, added to
+  every perceived position at each camera update; headings are not noised;
+- ``perception_delay`` τ [s]: the frame shows the true state as it was
+  D = round(τ/Δt) steps ago (before step D, the initial state);
+- ``perception_rate`` f_cam [Hz]: the frame is refreshed at steps 0, m, 2m, …
+  with m = max(1, round(1/(f_cam·Δt))) and held in between; 0 = every step;
+- ``perception_miss``: at each refresh every robot is missed independently with
+  this probability and keeps its last perceived pose (at step 0 nobody is
+  missed: the first frame initialises every pose).
+
+Randomness. Run ``seed`` draws its perception from its own generator,
+``perception_generators(np.random.default_rng([seed, 1]))``: two children of it,
+one for the position noise, one for the misses. So the run's own generator
+(initial state, sensing and actuation noise) is untouched and a run with
+perception off is bit-identical to one from before perception existed; noise
+and misses are separate streams, so switching one on does not change the
+other's draws (common random numbers across a study). Draws are made only at
+camera updates and only for what is on: per update, (N, 2) standard normals from
+the noise generator if σ_p > 0 and (N,) uniforms in [0, 1) from the miss
+generator if the miss probability is > 0, for every robot (a missed robot's
+draws are thrown away). A stream drawn an update at a time
+(:class:`PerceptionStream`) or many updates at a time (the simulator) gives the
+same numbers, so the stream built on ``default_rng([seed, 1])`` sees exactly
+what run ``seed`` of :func:`aes_ros.simulator.simulate` sees (for a camera at
+the control rate this costs as much as drawing every step would; a slower
+camera draws less).
+
+The pure functions below are the reference (the simulator's numpy backend uses
+them; the numba kernel in :mod:`aes_ros.kernel` does the same per robot);
+:class:`PerceptionStream` keeps the state of one run for a node that produces
+poses a step at a time.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class PerceptionSettings:
+    """The four perception parameters (module docstring); defaults: off."""
+
+    sigma: float = 0.0  #: σ_p [m], position noise std per axis
+    delay: float = 0.0  #: τ [s]
+    rate: float = 0.0  #: f_cam [Hz]; 0 = every control step
+    miss: float = 0.0  #: probability of a robot being missed at a refresh
+
+    @classmethod
+    def from_mapping(cls, values: dict) -> PerceptionSettings:
+        """The ``perception_*`` entries of a larger mapping (e.g. a scenario's values)."""
+        return cls(
+            **{
+                name: float(values[f"perception_{name}"])
+                for name in ("sigma", "delay", "rate", "miss")
+                if f"perception_{name}" in values
+            }
+        )
+
+    def enabled(self, dt: float) -> bool:
+        """Whether the perceived frame can differ from the true state at step ``dt`` [s]."""
+        return (
+            self.sigma > 0.0
+            or self.miss > 0.0
+            or delay_steps(self.delay, dt) > 0
+            or camera_period_steps(self.rate, dt) > 1
+        )
+
+
+def camera_period_steps(rate: float, dt: float) -> int:
+    """Control steps per camera frame, m = max(1, round(1/(f_cam·Δt))); 1 when f_cam = 0.
+
+    rate : f_cam [Hz]. dt : Δt [s].
+    """
+    if rate <= 0.0:
+        return 1
+    return max(1, round(1.0 / (rate * dt)))
+
+
+def delay_steps(delay: float, dt: float) -> int:
+    """The latency in control steps, D = round(τ/Δt). delay : τ [s]. dt : Δt [s]."""
+    return round(delay / dt)
+
+
+def ring_slots(step: int, delay: int) -> tuple[int, int]:
+    """Where the true state of ``step`` goes in a ring of the last D+1 states, and
+    where the state shown at ``step`` is: (step mod (D+1), (step + 1) mod (D+1)).
+
+    The slot read holds the state of step − D, or, before step D, whatever the ring
+    was filled with (the initial state). ``delay`` : D [steps].
+    """
+    return step % (delay + 1), (step + 1) % (delay + 1)
+
+
+def refresh_steps(first: int, n: int, period: int) -> np.ndarray:
+    """The refresh steps (multiples of ``period``) among steps ``first`` … ``first + n - 1``."""
+    start = -(-first // period) * period
+    return np.arange(start, first + n, period)
+
+
+def perception_generators(rng: np.random.Generator) -> tuple[np.random.Generator, ...]:
+    """(noise generator, miss generator): two independent children of ``rng``."""
+    noise_rng, miss_rng = rng.spawn(2)
+    return noise_rng, miss_rng
+
+
+def draw_camera(
+    noise_rng: np.random.Generator,
+    miss_rng: np.random.Generator,
+    settings: PerceptionSettings,
+    n_refreshes: int,
+    n_robots: int,
+    out: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The draws of ``n_refreshes`` camera updates.
+
+    Returns noise (R, N, 2), standard normals (zeros when σ_p = 0), and uniforms
+    (R, N) in [0, 1) (zeros when the miss probability is 0), R = ``n_refreshes``;
+    into the leading R rows of ``out`` if given.
+    """
+    if out is None:
+        out = (np.zeros((n_refreshes, n_robots, 2)), np.zeros((n_refreshes, n_robots)))
+    noise, uniforms = out[0][:n_refreshes], out[1][:n_refreshes]
+    if settings.sigma > 0.0:
+        noise_rng.standard_normal(out=noise)
+    if settings.miss > 0.0:
+        miss_rng.random(out=uniforms)
+    return noise, uniforms
+
+
+def missed_robots(uniforms: np.ndarray, miss: float, step: int) -> np.ndarray:
+    """Robots the camera misses at refresh ``step``: ``uniforms < miss``, none at step 0.
+
+    uniforms : (..., N) in [0, 1). Returns (..., N) bool.
+    """
+    if step == 0:
+        return np.zeros(uniforms.shape, dtype=bool)
+    return uniforms < miss
+
+
+def perceived_frame(
+    delayed_positions: np.ndarray,
+    delayed_headings: np.ndarray,
+    held_positions: np.ndarray,
+    held_headings: np.ndarray,
+    noise: np.ndarray,
+    missed: np.ndarray,
+    sigma: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The perceived frame after a camera update.
+
+    P̃_i = x_i(t − D) + σ_p z_i and Θ̃_i = θ_i(t − D) for a robot seen, the held
+    P̃_i, Θ̃_i for a robot missed.
+
+    Parameters
+    ----------
+    delayed_positions : (..., N, 2) [m] and delayed_headings : (..., N) [rad], the
+        true state D steps ago (see :func:`delay_steps`).
+    held_positions : (..., N, 2) [m] and held_headings : (..., N) [rad], the frame
+        shown until now.
+    noise : (..., N, 2) standard normals z. missed : (..., N) bool.
+    sigma : σ_p [m].
+
+    Returns
+    -------
+    positions : (..., N, 2) [m]; headings : (..., N) [rad].
+    """
+    seen = delayed_positions + sigma * noise
+    return (
+        np.where(missed[..., None], held_positions, seen),
+        np.where(missed, held_headings, delayed_headings),
+    )
+
+
+class PerceptionStream:
+    """The perceived frame of ONE run of N robots, fed the true state a step at a time.
+
+    For a node that produces the poses the robots see (e.g. ``/swarm/poses`` of a
+    simulated tracker); with ``rng = np.random.default_rng([seed, 1])`` it gives
+    what run ``seed`` of the offline simulator gives for the same true states.
+
+    Parameters
+    ----------
+    settings : σ_p, τ, f_cam, miss probability.
+    n_robots : N.
+    dt : control step Δt [s]: :meth:`see` is called once per step.
+    rng : perception draws (split with :func:`perception_generators`).
+    """
+
+    def __init__(
+        self,
+        settings: PerceptionSettings,
+        n_robots: int,
+        dt: float,
+        rng: np.random.Generator,
+    ) -> None:
+        self.settings, self.n_robots = settings, n_robots
+        self.period = camera_period_steps(settings.rate, dt)
+        self.delay = delay_steps(settings.delay, dt)
+        self._noise_rng, self._miss_rng = perception_generators(rng)
+        self._history: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=self.delay + 1)
+        self._next_step = 0
+        self._positions = np.zeros((n_robots, 2))
+        self._headings = np.zeros(n_robots)
+
+    def see(
+        self, positions: np.ndarray, headings: np.ndarray, step: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The perceived frame at ``step`` given the true state at that step.
+
+        positions : (N, 2) [m], headings : (N,) [rad], the true state before step
+        ``step``; steps must come in order 0, 1, 2, … (the delay keeps a history).
+        Returns perceived positions (N, 2) [m] and headings (N,) [rad] (copies).
+        """
+        if step != self._next_step:
+            raise ValueError(f"step: expected {self._next_step} (steps in order), got {step}")
+        state = (
+            np.array(positions, dtype=float).reshape(self.n_robots, 2),
+            np.array(headings, dtype=float).reshape(self.n_robots),
+        )
+        if step == 0:
+            self._history.extend([state] * (self.delay + 1))
+        else:
+            self._history.append(state)
+        if step % self.period == 0:
+            noise, uniforms = draw_camera(
+                self._noise_rng, self._miss_rng, self.settings, 1, self.n_robots
+            )
+            delayed_positions, delayed_headings = self._history[0]
+            self._positions, self._headings = perceived_frame(
+                delayed_positions,
+                delayed_headings,
+                self._positions,
+                self._headings,
+                noise[0],
+                missed_robots(uniforms[0], self.settings.miss, step),
+                self.settings.sigma,
+            )
+        self._next_step += 1
+        return self._positions.copy(), self._headings.copy()
