@@ -6,6 +6,11 @@ then the noise in chunks of :data:`CHUNK` steps. A run's numbers therefore do
 not depend on which other runs share its batch: a batch of B runs equals B
 single runs with the same seeds.
 
+With perception error on (``perception_*`` parameters, :mod:`aes_ros.perception`)
+the robots' commands come from a perceived frame; its draws come from a second
+generator per run, ``default_rng([seed, 1])``, so the first one draws exactly
+what it drew before perception existed and batching still changes nothing.
+
 Two backends compute the same thing: ``"numba"`` (default; the fused kernel in
 :mod:`aes_ros.kernel`, runs spread over the cores) and ``"numpy"`` (the plain
 reference path built from :mod:`aes_ros.model` and :mod:`aes_ros.metrics`).
@@ -21,7 +26,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import formations, metrics
-from aes_ros.kernel import PARAM_ORDER, advance
+from aes_ros.kernel import PARAM_ORDER, advance, spring_list
 from aes_ros.model import (
     Gains,
     Noise,
@@ -31,6 +36,17 @@ from aes_ros.model import (
     motion_commands,
     total_forces,
     unicycle_step,
+)
+from aes_ros.perception import (
+    PerceptionSettings,
+    camera_period_steps,
+    delay_steps,
+    draw_camera,
+    missed_robots,
+    perceived_frame,
+    perception_generators,
+    refresh_steps,
+    ring_slots,
 )
 from aes_ros.scenario import Scenario
 
@@ -99,7 +115,8 @@ def simulate(
     ----------
     scenario : formation, gains, command, Δt and duration.
     seeds : one seed per run (B = len(seeds)), or an int for a single run.
-    noise : False switches both noise terms off (the initial state is still drawn).
+    noise : False switches both noise terms off (the initial state is still drawn);
+        perception error (the scenario's ``perception_*``) stays as set.
     record : keep every step's positions and headings (memory B·T·N·3 floats).
     backend : "numba" (fused kernel) or "numpy" (reference path).
     progress : show a tqdm bar over the steps.
@@ -146,13 +163,18 @@ def simulate(
             (idx, _NumpyStepper(scenario, g, neighbors, rest, noise, record))
             for idx, g in _group_by_gains(run_gains)
         ]
+    perception = PerceptionSettings.from_mapping(scenario.values)
+    perceiving = perception.enabled(scenario.dt)
     bar = tqdm(total=T * len(batches), unit="step", disable=not progress, leave=False)
     for idx, sim in batches:
-        chunks = _NoiseChunks([rngs[i] for i in idx], N, noise)
         p, h = pos[idx], head[idx]
+        camera = (
+            _Camera(perception, scenario.dt, N, [seeds[i] for i in idx]) if perceiving else None
+        )
+        chunks = _NoiseChunks([rngs[i] for i in idx], N, noise, camera)
         for start in range(0, T, CHUNK):
             n = min(CHUNK, T - start)
-            m, ph, hh = sim.advance(p, h, *chunks.next(), n, stop_at[idx], start)
+            m, ph, hh = sim.advance(p, h, *chunks.next(start, n), n, stop_at[idx], start, camera)
             out_metrics[idx, start : start + n] = m
             if record:
                 pos_hist[idx, start : start + n] = ph
@@ -194,21 +216,62 @@ def _group_by_gains(run_gains: list[Gains]) -> list[tuple[np.ndarray, Gains]]:
 _POOL = ThreadPoolExecutor(max_workers=2)
 
 
+class _Camera:
+    """The camera of a batch of runs (:mod:`aes_ros.perception`): its settings, each
+    run's generators and the draws of the camera updates in the current chunk,
+    noise (B, R, N, 2) and uniforms (B, R, N) (R = at most CHUNK), filled by
+    :class:`_NoiseChunks`. The steppers keep the perceived frame and the delay ring.
+    """
+
+    def __init__(
+        self, settings: PerceptionSettings, dt: float, n_robots: int, seeds: list[int]
+    ) -> None:
+        B, N = len(seeds), n_robots
+        self.settings = settings
+        self.period = camera_period_steps(settings.rate, dt)
+        self.delay = delay_steps(settings.delay, dt)
+        self.rngs = [perception_generators(np.random.default_rng([s, 1])) for s in seeds]
+        most = len(refresh_steps(0, CHUNK, self.period))
+        self.noise, self.uniforms = np.zeros((B, most, N, 2)), np.zeros((B, most, N))
+        self.n_refreshes = 0
+
+    def draw(self, b: int) -> None:
+        """Fill run ``b``'s draws of the current chunk's ``n_refreshes`` updates."""
+        draw_camera(
+            *self.rngs[b],
+            self.settings,
+            self.n_refreshes,
+            self.noise.shape[2],
+            out=(self.noise[b], self.uniforms[b]),
+        )
+
+
 class _NoiseChunks:
-    """Noise of every run, CHUNK steps at a time, into reused (B, CHUNK, N) buffers.
+    """Noise of every run, CHUNK steps at a time, into reused (B, CHUNK, N) buffers,
+    and the camera's draws of those steps' updates (into the :class:`_Camera`).
 
     Drawn on two threads (numpy releases the GIL while filling); each run's
     stream depends only on its own generator, so batching never changes a run.
     """
 
-    def __init__(self, rngs: list[np.random.Generator], n_robots: int, noise: bool) -> None:
+    def __init__(
+        self,
+        rngs: list[np.random.Generator],
+        n_robots: int,
+        noise: bool,
+        camera: _Camera | None = None,
+    ) -> None:
         shape = (len(rngs), CHUNK, n_robots)
-        self.rngs, self.noise = rngs, noise
+        self.rngs, self.noise, self.camera = rngs, noise, camera
         self.buffers = (np.zeros(shape), np.zeros(shape), np.zeros(shape))
 
-    def next(self) -> Noise:
-        """(xi_x, xi_y, xi_theta), each (B, CHUNK, N), for the next CHUNK steps."""
-        if self.noise:
+    def next(self, start: int, n: int) -> Noise:
+        """(xi_x, xi_y, xi_theta), each (B, CHUNK, N), for the CHUNK steps from
+        ``start``; the camera draws for the updates among its first ``n`` steps."""
+        cam = self.camera
+        if cam is not None:
+            cam.n_refreshes = len(refresh_steps(start, n, cam.period))
+        if self.noise or (cam is not None and cam.n_refreshes > 0):
             half = len(self.rngs) // 2
             if half < 8:
                 self._fill(0, len(self.rngs))
@@ -218,11 +281,14 @@ class _NoiseChunks:
 
     def _fill(self, lo: int, hi: int) -> None:
         for b in range(lo, hi):
-            draw_noise(
-                self.rngs[b],
-                (CHUNK, self.buffers[0].shape[2]),
-                out=tuple(buf[b] for buf in self.buffers),
-            )
+            if self.noise:
+                draw_noise(
+                    self.rngs[b],
+                    (CHUNK, self.buffers[0].shape[2]),
+                    out=tuple(buf[b] for buf in self.buffers),
+                )
+            if self.camera is not None:
+                self.camera.draw(b)
 
 
 def _final_metrics(
@@ -276,8 +342,18 @@ class _NumpyStepper:
         n: int,
         stop_at: np.ndarray,
         first_step: int,
+        camera: _Camera | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         sc = self.scenario
+        seen_pos, seen_head = pos, head
+        if camera is not None and first_step == 0:
+            self.seen = (pos.copy(), head.copy())
+            length = camera.delay + 1
+            self.ring = (
+                np.repeat(pos[:, None], length, axis=1),
+                np.repeat(head[:, None], length, axis=1),
+            )
+        refresh = 0
         m = np.empty((len(head), n, 5))
         ph = np.empty((len(head), n, *pos.shape[1:])) if self.record else None
         hh = np.empty((len(head), n, head.shape[1])) if self.record else None
@@ -285,15 +361,39 @@ class _NumpyStepper:
             m[:, s] = _final_metrics(pos, head, self.neighbors, self.rest, self.gains, sc.command)
             if self.record:
                 ph[:, s], hh[:, s] = pos, head
-            forces = total_forces(pos, self.neighbors, self.rest, self.gains, sc.command)
+            if camera is not None:
+                step = first_step + s
+                seen_pos, seen_head = self._see(camera, pos, head, step, refresh)
+                if step % camera.period == 0:
+                    refresh += 1
+            forces = total_forces(seen_pos, self.neighbors, self.rest, self.gains, sc.command)
             noise = (xi_x[:, s], xi_y[:, s], xi_theta[:, s]) if self.noise else None
-            u, w = motion_commands(forces, head, self.gains, sc.dt, noise)
+            u, w = motion_commands(forces, seen_head, self.gains, sc.dt, noise)
             if sc.clip:
                 u, w = clip_commands(u, w, sc.max_linear_speed, sc.max_angular_speed)
             moving = first_step + s < stop_at
             u, w = np.where(moving, u, 0.0), np.where(moving, w, 0.0)
             pos[...], head[...] = unicycle_step(pos, head, u, w, sc.dt)
         return m, ph, hh
+
+    def _see(
+        self, camera: _Camera, pos: np.ndarray, head: np.ndarray, step: int, refresh: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The perceived frame at ``step``: the ring takes the true state, a camera
+        update (draws ``refresh`` of the chunk) shows the one D steps ago."""
+        (ring_pos, ring_head), settings = self.ring, camera.settings
+        write, read = ring_slots(step, camera.delay)
+        ring_pos[:, write], ring_head[:, write] = pos, head
+        if step % camera.period == 0:
+            self.seen = perceived_frame(
+                ring_pos[:, read],
+                ring_head[:, read],
+                *self.seen,
+                camera.noise[:, refresh],
+                missed_robots(camera.uniforms[:, refresh], settings.miss, step),
+                settings.sigma,
+            )
+        return self.seen
 
 
 class _NumbaStepper:
@@ -322,6 +422,10 @@ class _NumbaStepper:
             "clip": float(scenario.clip),
             "max_linear_speed": scenario.max_linear_speed,
             "max_angular_speed": scenario.max_angular_speed,
+            "perception_sigma": scenario.perception_sigma,
+            "perception_miss": scenario.perception_miss,
+            "perception_delay_steps": delay_steps(scenario.perception_delay, scenario.dt),
+            "perception_period_steps": camera_period_steps(scenario.perception_rate, scenario.dt),
         }
         self.params = np.array(
             [[{**shared, **asdict(g)}[name] for name in PARAM_ORDER] for g in run_gains],
@@ -329,7 +433,11 @@ class _NumbaStepper:
         )
         self.neighbors = np.ascontiguousarray(neighbors, dtype=np.int64)
         self.rest = np.ascontiguousarray(rest, dtype=float)
+        self.springs = spring_list(self.neighbors, self.rest)
         self.record = record
+        B = len(run_gains)
+        self.seen, self.ring = np.empty((B, 0, 4)), np.empty((B, 0, 0, 4))
+        self.draws = (np.empty((B, 0, 0, 2)), np.empty((B, 0, 0)))
 
     def advance(
         self,
@@ -341,14 +449,22 @@ class _NumbaStepper:
         n: int,
         stop_at: np.ndarray,
         first_step: int,
+        camera: _Camera | None = None,
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         B, N = head.shape
+        if camera is not None:
+            if first_step == 0:  # (x, y, cos θ, sin θ): the initial state everywhere
+                state = np.concatenate([pos, np.cos(head)[..., None], np.sin(head)[..., None]], -1)
+                self.seen = state.copy()
+                self.ring = np.repeat(state[:, None], camera.delay + 1, axis=1)
+            self.draws = (camera.noise, camera.uniforms)
         m = np.empty((B, CHUNK, 5))
         ph = np.empty((B, CHUNK, N, 2)) if self.record else np.empty((0, 0, 0, 2))
         hh = np.empty((B, CHUNK, N)) if self.record else np.empty((0, 0, 0))
         advance(
             pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh,
-            np.ascontiguousarray(stop_at), first_step,
+            np.ascontiguousarray(stop_at), first_step, self.springs, self.seen, self.ring,
+            *self.draws,
         )  # fmt: skip
         if not self.record:
             return m[:, :n], None, None
