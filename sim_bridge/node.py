@@ -32,6 +32,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import SetBool, Trigger
 
 from aes_ros.params import ParameterError
+from aes_ros.perception import PerceptionSettings
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import OdometryEncoder, PoseArrayEncoder, decode_twist
@@ -44,6 +45,7 @@ from aes_ros.world_state import WorldState
 from sim_bridge.lockstep import LockstepBarrier
 from sim_bridge.loop_stats import ControlLoopStats
 from sim_bridge.parameters import declare_bridge_parameters
+from sim_bridge.perceived_poses import PerceivedPoses
 from sim_bridge.world import World
 
 #: Wall-clock time [s] after which a lockstep bridge still waiting for commands
@@ -102,7 +104,11 @@ class SimBridgeNode(Node):
         Open the pybullet GUI. Read-only.
 
     Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
-    index = robot id), ``/mona_<i>/odom``; subscribes ``/mona_<i>/cmd_vel``.
+    index = robot id), ``/mona_<i>/odom``; subscribes ``/mona_<i>/cmd_vel``. With
+    the scenario's perception error on (``perception_*``, :mod:`aes_ros.perception`),
+    ``/swarm/poses`` is what a tracker would show the robots
+    (:mod:`sim_bridge.perceived_poses`) and the exact poses go to
+    ``/sim/ground_truth/poses``; odometry stays exact.
     Services: ``/sim/reset`` (Trigger: back to the initial state, every robot
     stopped; the clock keeps running), ``/sim/pause`` (SetBool: true pauses),
     ``/sim/stats`` (Trigger: JSON of the control loop since the previous call, see
@@ -156,6 +162,14 @@ class SimBridgeNode(Node):
 
         self.clock_pub = self.create_publisher(ClockMsg, names.CLOCK, STREAM_WRITER)
         self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
+        # The scenario's perception error: /swarm/poses perceived, the exact poses apart.
+        perception = PerceptionSettings.from_mapping(scenario.values)
+        self.perceived: PerceivedPoses | None = None
+        if perception.enabled(self.dt):
+            self.perceived = PerceivedPoses(perception, self.n, self.dt, get("seed").value)
+            self.truth_pub = self.create_publisher(
+                PoseArray, names.GROUND_TRUTH_POSES, STREAM_WRITER
+            )
         # Every QoS event handler is one more entity in each wait of the executor;
         # robot 0's report incompatible QoS (all robots are alike), the others none.
         quiet_pub = PublisherEventCallbacks(use_default_callbacks=False)
@@ -219,6 +233,7 @@ class SimBridgeNode(Node):
         self.stamp = Time()
         self.clock_msg = ClockMsg(clock=self.stamp)
         self.poses_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
+        self.seen_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
         self.odom_encoders = [
             OdometryEncoder(names.WORLD_FRAME, names.base_link(i)) for i in range(self.n)
         ]
@@ -411,9 +426,15 @@ class SimBridgeNode(Node):
         self.stamp.sec, self.stamp.nanosec = divmod(ns, 1_000_000_000)
         self.clock_pub.publish(self.clock_msg)
         positions, headings = self.world.poses()
-        self.poses_pub.publish(
-            self.poses_encoder.encode(self.stamp.sec, self.stamp.nanosec, positions, headings)
-        )
+        exact = self.poses_encoder.encode(self.stamp.sec, self.stamp.nanosec, positions, headings)
+        if self.perceived is None:
+            self.poses_pub.publish(exact)
+        else:
+            self.truth_pub.publish(exact)
+            seen = self.perceived.frame(self.world.step_count, positions, headings)
+            self.poses_pub.publish(
+                self.seen_encoder.encode(self.stamp.sec, self.stamp.nanosec, *seen)
+            )
         listened = self.odom_listened
         if listened:
             forward, sideways, turn = self.world.velocities()

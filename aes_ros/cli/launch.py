@@ -8,6 +8,7 @@ Examples::
     aes-swarm launch --setup combined --robots 100 --duration 0 --out out/long \
         --record out/long/run.mcap --bag-split 10min --bag-keep 12
     aes-swarm launch --robots 1000 --discovery server --out out/big   # . out/big/ros_env.sh
+    aes-swarm launch --robots 25 --perception sigma=0.003,delay=0.05,rate=20,miss=0.01
 
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
@@ -135,6 +136,14 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="with --world none: the camera's calibration (aes-swarm calibrate)",
     )  # fmt: skip
     p.add_argument(
+        "--perception", type=_perception, default={}, metavar="sigma=M,delay=S,rate=HZ,miss=P",
+        help="the robots see /swarm/poses through the offline simulator's perception model "
+        "(aes_ros.perception): position noise sigma [m], delay [s], camera rate [Hz; 0: every "
+        "step], miss probability per robot and frame; any of the four, e.g. "
+        "sigma=0.003,delay=0.05,rate=20,miss=0.01 (the same as --set perception_sigma=0.003 "
+        "…). The bridge's exact poses go to /sim/ground_truth/poses (the outputs' source)",
+    )  # fmt: skip
+    p.add_argument(
         "--camera", type=_pixels, default=(1280, 960), metavar="WxH",
         help="the simulated camera's resolution (default 1280x960)",
     )  # fmt: skip
@@ -162,6 +171,29 @@ def _address(text: str) -> str:
     return f"{host}:{port}"
 
 
+#: ``--perception`` keys and the parameters they set.
+PERCEPTION_KEYS = {k: f"perception_{k}" for k in ("sigma", "delay", "rate", "miss")}
+
+
+def _perception(text: str) -> dict[str, float]:
+    """``--perception sigma=…,delay=…,rate=…,miss=…``: the ``perception_*`` overrides,
+    each validated against its parameter's range."""
+    from aes_ros.params import ParameterError, validate_params
+
+    values = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        key, sep, value = item.partition("=")
+        if not sep or key.strip() not in PERCEPTION_KEYS:
+            raise argparse.ArgumentTypeError(
+                f"{item!r}: expected KEY=VALUE with KEY one of {', '.join(PERCEPTION_KEYS)}"
+            )
+        values[PERCEPTION_KEYS[key.strip()]] = value.strip()
+    try:
+        return validate_params(values, "--perception")
+    except ParameterError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _pixels(text: str) -> tuple[int, int]:
     """``WxH`` in pixels, each 16 … 8192."""
     try:
@@ -177,6 +209,8 @@ def run(args: argparse.Namespace) -> int:
     from aes_ros.ros.launch import LaunchConfig, LaunchError, launch
 
     sc = load_scenario(args)
+    if args.perception:
+        sc = sc.with_overrides(args.perception, "--perception")
     overrides = scenario.parse_assignments(args.set)
     try:
         config = LaunchConfig(

@@ -25,6 +25,7 @@ import numpy as np
 import yaml
 
 from aes_ros.model import GAIN_FIELDS
+from aes_ros.perception import PerceptionSettings
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import SPLIT_FORMS, parse_split
@@ -157,6 +158,16 @@ class LaunchConfig:
                 not (self.lockstep and self.tracking != "none"),
                 "not with --tracking camera (a camera frame is not a control step)",
             ),
+            (
+                "tracking",
+                not (self.perceived and self.tracking != "none"),
+                "not with perception error (perception_*): the model stands in for a camera",
+            ),
+            (
+                "neighbor_source",
+                not (self.perceived and self.neighbor_source != "poses"),
+                "with perception error (perception_*) the robots read /swarm/poses",
+            ),
             ("on_failure", self.on_failure in ON_FAILURE, _one_of(ON_FAILURE)),
             (
                 "discovery",
@@ -236,11 +247,19 @@ class LaunchConfig:
         return self.tracking != "none" and self.world != "none"
 
     @property
+    def perceived(self) -> bool:
+        """The robots see the world through the perception model (the scenario's
+        ``perception_*``; the bridge applies it to /swarm/poses)."""
+        return PerceptionSettings.from_mapping(self.scenario.values).enabled(self.scenario.dt)
+
+    @property
     def poses_topic(self) -> str:
         """The poses the launcher samples and the outputs are made of: the bridge's exact
-        ones (``/sim/ground_truth/poses`` when the robots read the tracker's), or in a
-        real arena the tracker's (``/swarm/poses``)."""
-        return names.GROUND_TRUTH_POSES if self.simulated_camera else names.POSES
+        ones (``/sim/ground_truth/poses`` when the robots read the tracker's or perceived
+        ones), or in a real arena the tracker's (``/swarm/poses``)."""
+        if self.simulated_camera or (self.world != "none" and self.perceived):
+            return names.GROUND_TRUTH_POSES
+        return names.POSES
 
     @property
     def num_robots(self) -> int:
