@@ -87,3 +87,24 @@ def test_loop_stats_memory_stays_flat_and_percentiles_within_one_percent() -> No
         exact = np.percentile(latencies, q) * 1e3
         assert snap[f"latency_p{q}_ms"] == pytest.approx(exact, rel=0.012), q
     assert snap["latency_max_ms"] == pytest.approx(latencies.max() * 1e3)
+
+
+def test_perceived_poses_are_one_frame_per_world_step_whatever_is_published_again() -> None:
+    """A state published again (lockstep re-publishing, a resumed bridge waiting) shows
+    the same perceived frame; the stream advances with the world's steps only, from
+    the first step the bridge saw (a resumed bridge starts at its step count)."""
+    from aes_ros.perception import PerceptionSettings, PerceptionStream
+    from sim_bridge.perceived_poses import PerceivedPoses
+
+    settings = PerceptionSettings(sigma=0.01, delay=0.1, miss=0.2)
+    seen = PerceivedPoses(settings, 4, 0.05, seed=3)
+    reference = PerceptionStream(settings, 4, 0.05, np.random.default_rng([3, 1]))
+    rng = np.random.default_rng(0)
+    for world_step in range(120, 130):  # resumed at step 120
+        xy, yaw = rng.normal(size=(4, 2)), rng.normal(size=4)
+        first = seen.frame(world_step, xy, yaw)
+        again = seen.frame(world_step, xy + 1.0, yaw)  # the same step published again
+        np.testing.assert_array_equal(first[0], again[0])
+        expected = reference.see(xy, yaw, world_step - 120)
+        np.testing.assert_array_equal(first[0], expected[0])
+        np.testing.assert_array_equal(first[1], expected[1])
