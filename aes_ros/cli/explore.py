@@ -5,13 +5,21 @@ Examples::
     aes-swarm explore pareto                  # docs/explore/pareto/pareto.png, …
     aes-swarm explore noise --workers 2
     aes-swarm explore robustness --scheduler tcp://head:8786
+    aes-swarm explore perception              # docs/explore/perception/…
+    aes-swarm explore ladder                  # docs/explore/ladder/…
 
 - ``pareto``: the Pareto front of (F̄/N, ψ̄) over (α, β, k) and where the paper's,
   the untuned and the TCACS gains lie on it (:mod:`aes_ros.studies.pareto`);
 - ``noise``: the noise phase diagram over (D_r, D_θ) and the swarm size
   (:mod:`aes_ros.studies.noise`);
 - ``robustness``: J and ψ̄ of the paper's and the TCACS gains under noise, size and
-  failing robots (:mod:`aes_ros.studies.robustness`).
+  failing robots (:mod:`aes_ros.studies.robustness`);
+- ``perception``: how much position noise, delay, camera rate and missed detection
+  the swarm tolerates before ψ̄ falls below 0.8 (:mod:`aes_ros.studies.perception`);
+- ``ladder``: the reality-gap ladder, offline → offline with the tracker's error →
+  pybullet kinematic → dynamic → dynamic with camera and tracker
+  (:mod:`aes_ros.studies.ladder`; its ROS runs start ``aes-swarm launch``, one at a
+  time, and take about half an hour).
 
 The sweeps' tables go to ``--work`` (resumable: an interrupted study goes on where
 it stopped), the figures, CSV and JSON to ``--out``.
@@ -26,7 +34,7 @@ from pathlib import Path
 
 from aes_ros.cli.options import number_type
 
-STUDIES = ("pareto", "noise", "robustness")
+STUDIES = ("pareto", "noise", "robustness", "perception", "ladder")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
