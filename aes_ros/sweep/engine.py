@@ -36,6 +36,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros.scenario import Scenario
+from aes_ros.scenario import defaults as scenario_defaults
 from aes_ros.sweep.runs import RUN_COLUMNS, Task, make_tasks, run_task
 from aes_ros.sweep.spec import Axis, SweepSpecError
 
@@ -114,6 +115,9 @@ def prepare(sweep: Sweep, out: Path) -> set[int]:
     mine = sweep.description()
     if spec.exists():
         theirs = json.loads(spec.read_text())
+        # parameters added since that sweep was written ran at their defaults then
+        defaults = json.loads(json.dumps(scenario_defaults(), default=list))
+        theirs["scenario"] = {**defaults, **theirs.get("scenario", {})}
         if theirs != mine:
             differ = sorted(k for k in mine if theirs.get(k) != mine[k])
             raise SweepSpecError(

@@ -135,3 +135,22 @@ def test_another_sweep_into_the_same_directory_is_refused(tmp_path) -> None:
     execute(_sweep(), tmp_path, progress=False, say=lambda _: None)
     with pytest.raises(SweepSpecError, match=r"holds another sweep.*mc"):
         execute(_sweep(mc=2), tmp_path, progress=False, say=lambda _: None)
+
+
+def test_a_sweep_written_before_a_parameter_existed_resumes_unless_it_is_changed(
+    tmp_path,
+) -> None:
+    """A sweep.json from before a parameter was added (e.g. the perception_* ones) ran
+    it at its default: the same sweep resumes there; one that sets it is refused."""
+    import json
+
+    execute(_sweep(), tmp_path, progress=False, say=lambda _: None)
+    spec = tmp_path / engine.SPEC_FILE
+    old = json.loads(spec.read_text())
+    del old["scenario"]["perception_sigma"]
+    spec.write_text(json.dumps(old))
+    execute(_sweep(), tmp_path, progress=False, say=lambda _: None)  # resumes: all done
+    changed = _sweep()
+    changed.base = changed.base.with_overrides({"perception_sigma": 0.01})  # a dataclass
+    with pytest.raises(SweepSpecError, match=r"holds another sweep.*scenario"):
+        execute(changed, tmp_path, progress=False, say=lambda _: None)
