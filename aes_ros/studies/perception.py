@@ -225,7 +225,10 @@ def _figure(
         lab = LAB[axis.name] * axis.scale
         ax.axvline(lab, color="0.6", lw=0.8)
         ax.set(xlabel=f"{axis.label} [{axis.unit}]", ylabel="ψ̄ (E8)", ylim=(0.3, 1.0))
-        if axis.worse_when_lower:
+        if axis.worse_when_lower:  # a rate: on a log axis, worse to the right
+            ax.set_xscale("log")
+            ax.set_xticks([0.5, 1, 2, 5, 10, 20, 50], ["0.5", "1", "2", "5", "10", "20", "50"])
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.invert_xaxis()
         ax.set_title(f"{axis.label}\n(others at lab values; grey: lab)", fontsize=9)
     panels[0, 0].legend(fontsize=7, loc="lower left")
