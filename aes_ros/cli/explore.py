@@ -17,9 +17,9 @@ Examples::
 - ``perception``: how much position noise, delay, camera rate and missed detection
   the swarm tolerates before ψ̄ falls below 0.8 (:mod:`aes_ros.studies.perception`);
 - ``ladder``: the reality-gap ladder, offline → offline with the tracker's error →
-  pybullet kinematic → dynamic → dynamic with camera and tracker
-  (:mod:`aes_ros.studies.ladder`; its ROS runs start ``aes-swarm launch``, one at a
-  time, and take about half an hour).
+  pybullet kinematic → dynamic → dynamic in real time → with camera and tracker
+  (:mod:`aes_ros.studies.ladder`; its 72 ROS runs start ``aes-swarm launch``, one at
+  a time, and take about 40 minutes).
 
 The sweeps' tables go to ``--work`` (resumable: an interrupted study goes on where
 it stopped), the figures, CSV and JSON to ``--out``.

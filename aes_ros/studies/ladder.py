@@ -1,17 +1,20 @@
 """The reality-gap ladder: the same swarm, one rung of realism at a time.
 
 The paper's three setups (linear, rotation, combined; 30 s) with the paper's and the
-TCACS gains, :data:`ROBOTS` robots, several seeds, on five rungs:
+TCACS gains, :data:`ROBOTS` robots, several seeds, on six rungs:
 
-1. ``offline``: the offline simulator, ideal sensing;
+1. ``offline``: the offline simulator, ideal sensing, commands clipped to the Mona's
+   limits as the robots clip them (the simulator's default is unclipped);
 2. ``offline+perception``: the offline simulator with the perception model
    (:mod:`aes_ros.perception`) set to what the camera tracker measured
    (:data:`TRACKER_FIT`);
 3. ``kinematic``: the ROS system on pybullet, bodies following ``cmd_vel`` exactly
    (lockstep, as fast as possible);
 4. ``dynamic``: the same with wheel motors and collisions;
-5. ``camera``: dynamic, the robots reading the simulated overhead camera through the
-   ArUco tracker (real time: the tracker's latency is wall time).
+5. ``dynamic-rt``: the same in real time (no lockstep: the bridge steps on the wall
+   clock and a command that comes late acts a step late), the stepping of the next rung;
+6. ``camera``: dynamic in real time, the robots reading the simulated overhead camera
+   through the ArUco tracker (real time: the tracker's latency is wall time).
 
 Each run gives ψ̄ (E8) and ψ̄_heading (E7) over t ≥ :data:`TRANSIENT`, F̄/N (E9), the
 cost J with the paper's weights (E10; a ROS run's per-sample mean times the setup's
@@ -87,6 +90,7 @@ RUNGS = (
                                              "--real-time-factor", "0")),
     Rung("dynamic", "pybullet dynamic", ("--mode", "dynamic", "--lockstep",
                                          "--real-time-factor", "0")),
+    Rung("dynamic-rt", "dynamic, real time", ("--mode", "dynamic")),
     Rung("camera", "dynamic + camera + tracker", ("--mode", "dynamic", "--tracking", "camera",
                                                   "--camera", CAMERA)),
 )  # fmt: skip
@@ -203,11 +207,9 @@ def run(out: Path, where: Where, quick: bool = False) -> dict[str, Any]:
     for rung in rungs:
         for setup in setups:
             for g in chosen:
-                sc = (
-                    scenario_mod.load(setup)
-                    .with_robots(ROBOTS)
-                    .with_overrides({"alpha": g.alpha, "beta": g.beta, "k": g.k}, source="ladder")
-                )
+                # clip: the robots' limits, which the ROS rungs always apply
+                gains = {"alpha": g.alpha, "beta": g.beta, "k": g.k, "clip": True}
+                sc = scenario_mod.load(setup).with_robots(ROBOTS).with_overrides(gains, "ladder")
                 if quick:
                     sc = sc.with_overrides({"duration": 15.0}, source="ladder")
                 if not rung.launch:
