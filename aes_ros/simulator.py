@@ -427,10 +427,8 @@ class _NumbaStepper:
             "perception_delay_steps": delay_steps(scenario.perception_delay, scenario.dt),
             "perception_period_steps": camera_period_steps(scenario.perception_rate, scenario.dt),
         }
-        self.params = np.array(
-            [[{**shared, **asdict(g)}[name] for name in PARAM_ORDER] for g in run_gains],
-            dtype=float,
-        )
+        rows = ({**shared, **asdict(g)} for g in run_gains)  # asdict deep-copies: once a run
+        self.params = np.array([[row[name] for name in PARAM_ORDER] for row in rows], dtype=float)
         self.neighbors = np.ascontiguousarray(neighbors, dtype=np.int64)
         self.rest = np.ascontiguousarray(rest, dtype=float)
         self.springs = spring_list(self.neighbors, self.rest)
