@@ -16,6 +16,11 @@ computes the perceived one only when the camera updates (the frame is held in
 between). The ring and the frame hold (x, y, cos θ, sin θ), so a heading's
 cosine and sine are computed once, on the true state. Without perception the
 kernel does exactly the float operations it did before perception existed.
+
+The perception's random draws are made here too, by :func:`camera_draws` at each
+camera update of a run, from the run's own xoshiro256** states (the generator and
+why: :mod:`aes_ros.perception`, Randomness); each run draws in order on its core,
+so the numbers depend neither on the batch nor on the number of threads.
 """
 
 from __future__ import annotations
@@ -23,7 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint64
 
 from aes_ros.metrics import FORCE_EPS
 
@@ -34,6 +39,117 @@ PARAM_ORDER = (
     "clip", "max_linear_speed", "max_angular_speed",
     "perception_sigma", "perception_miss", "perception_delay_steps", "perception_period_steps",
 )  # fmt: skip
+
+
+_ZIGGURAT_R = 3.6541528853610088  # where the ziggurat's tail begins
+
+
+def _ziggurat_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Marsaglia & Tsang's (2000) 256-layer ziggurat for N(0, 1) on 52-bit integers:
+    thresholds k (256,) int64, widths w (256,) [1/2⁵²] and densities f (256,).
+
+    The base layer starts at r = 3.6541528853610088 and every layer has the area v of
+    the base strip and tail; v is computed from r (not Marsaglia & Tsang's rounded
+    0.00492867323399) so that the top layer closes to 1e-13; the tables then equal
+    numpy's ``ki_double``, ``wi_double``, ``fi_double`` to about 1e-13.
+    """
+
+    def f(x: float) -> float:
+        return math.exp(-0.5 * x * x)
+
+    r = _ZIGGURAT_R
+    v = r * f(r) + math.sqrt(math.pi / 2.0) * math.erfc(r / math.sqrt(2.0))
+    scale = 2.0**52
+    k, w, fi = np.zeros(256, np.int64), np.zeros(256), np.zeros(256)
+    q = v / f(r)
+    k[0] = int(r / q * scale)
+    w[0], w[255] = q / scale, r / scale
+    fi[0], fi[255] = 1.0, f(r)
+    x = x_up = r
+    for i in range(254, 0, -1):
+        x = math.sqrt(-2.0 * math.log(v / x + f(x)))
+        k[i + 1] = int(x / x_up * scale)
+        x_up = x
+        fi[i], w[i] = f(x), x / scale
+    return k, w, fi
+
+
+_ZIGGURAT_K, _ZIGGURAT_W, _ZIGGURAT_F = _ziggurat_tables()
+_TO_UNIT = 1.0 / 2.0**53  # 53 random bits to a double in [0, 1)
+_MASK_52 = np.uint64((1 << 52) - 1)
+
+
+@njit(inline="always")
+def _xoshiro256(s0: int, s1: int, s2: int, s3: int) -> tuple[int, int, int, int, int]:
+    """xoshiro256** (Blackman & Vigna 2018): the next 64-bit output and the new state."""
+    out = s1 * uint64(5)
+    out = ((out << uint64(7)) | (out >> uint64(57))) * uint64(9)
+    t = s1 << uint64(17)
+    s2 ^= s0
+    s3 ^= s1
+    s1 ^= s2
+    s0 ^= s3
+    s2 ^= t
+    s3 = (s3 << uint64(45)) | (s3 >> uint64(19))
+    return out, s0, s1, s2, s3
+
+
+@njit(inline="always")
+def _standard_normal(s0: int, s1: int, s2: int, s3: int) -> tuple[float, int, int, int, int]:
+    """One N(0, 1) draw by the ziggurat and the new xoshiro256** state.
+
+    numpy's variant: of one 64-bit output, 8 bits pick the layer, 1 the sign, 52 the
+    abscissa; 98.8 % of draws end there, with no more output and no exp or log.
+    """
+    while True:
+        bits, s0, s1, s2, s3 = _xoshiro256(s0, s1, s2, s3)
+        layer = np.int64(bits & uint64(0xFF))
+        negative = (bits >> uint64(8)) & uint64(1)
+        mantissa = np.int64((bits >> uint64(9)) & _MASK_52)
+        x = mantissa * _ZIGGURAT_W[layer]
+        if mantissa < _ZIGGURAT_K[layer]:
+            break
+        if layer == 0:  # the tail beyond r (Marsaglia 1964)
+            while True:
+                bits, s0, s1, s2, s3 = _xoshiro256(s0, s1, s2, s3)
+                xx = -math.log1p(-((bits >> uint64(11)) * _TO_UNIT)) / _ZIGGURAT_R
+                bits, s0, s1, s2, s3 = _xoshiro256(s0, s1, s2, s3)
+                yy = -math.log1p(-((bits >> uint64(11)) * _TO_UNIT))
+                if yy + yy > xx * xx:
+                    break
+            x = _ZIGGURAT_R + xx
+            break
+        bits, s0, s1, s2, s3 = _xoshiro256(s0, s1, s2, s3)
+        below = _ZIGGURAT_F[layer - 1] - _ZIGGURAT_F[layer]
+        if below * ((bits >> uint64(11)) * _TO_UNIT) + _ZIGGURAT_F[layer] < math.exp(-0.5 * x * x):
+            break
+    return (-x if negative else x), s0, s1, s2, s3
+
+
+@njit(cache=True)
+def camera_draws(
+    state: np.ndarray, noise_on: bool, miss_on: bool, noise: np.ndarray, uniforms: np.ndarray
+) -> None:
+    """The perception draws of M robot-frames (:mod:`aes_ros.perception`), in order.
+
+    state : (2, 4) uint64, the xoshiro256** states of the noise and the miss
+        generator of one run, advanced in place.
+    noise : (M, 2) out: standard normals (x then y of each robot-frame), drawn from
+        the noise generator if ``noise_on`` (else left as they are).
+    uniforms : (M,) out: uniforms in [0, 1) from the miss generator if ``miss_on``.
+    """
+    if noise_on:
+        s0, s1, s2, s3 = state[0, 0], state[0, 1], state[0, 2], state[0, 3]
+        for i in range(noise.shape[0]):
+            noise[i, 0], s0, s1, s2, s3 = _standard_normal(s0, s1, s2, s3)
+            noise[i, 1], s0, s1, s2, s3 = _standard_normal(s0, s1, s2, s3)
+        state[0, 0], state[0, 1], state[0, 2], state[0, 3] = s0, s1, s2, s3
+    if miss_on:
+        s0, s1, s2, s3 = state[1, 0], state[1, 1], state[1, 2], state[1, 3]
+        for i in range(uniforms.shape[0]):
+            bits, s0, s1, s2, s3 = _xoshiro256(s0, s1, s2, s3)
+            uniforms[i] = (bits >> uint64(11)) * _TO_UNIT
+        state[1, 0], state[1, 1], state[1, 2], state[1, 3] = s0, s1, s2, s3
 
 
 def spring_list(neighbors: np.ndarray, rest_lengths: np.ndarray) -> tuple[np.ndarray, ...]:
@@ -101,8 +217,7 @@ def advance(
     springs: tuple[np.ndarray, np.ndarray, np.ndarray],
     seen: np.ndarray,
     ring: np.ndarray,
-    camera_noise: np.ndarray,
-    camera_uniforms: np.ndarray,
+    camera_state: np.ndarray,
 ) -> None:
     """Advance every run by ``n_steps`` Euler steps in place.
 
@@ -124,9 +239,9 @@ def advance(
     ring : (B, D+1, N, 4) the true states (x, y, cos θ, sin θ) of the last D+1
         steps, step t in slot t % (D+1), updated (before step D the slots not yet
         written hold the initial state); (B, 0, 0, 4) with perception off.
-    camera_noise : (B, R, N, 2) standard normals and camera_uniforms : (B, R, N)
-        in [0, 1): the draws of the R camera updates among these steps
-        (:func:`aes_ros.perception.draw_camera`).
+    camera_state : (B, 2, 4) uint64, each run's perception generators
+        (:func:`aes_ros.perception.perception_state`), advanced by the draws of the
+        camera updates among these steps (:func:`camera_draws`, N robot-frames each).
     """
     B, N = headings.shape
     K = neighbors.shape[1]
@@ -168,10 +283,11 @@ def advance(
         seen_force = np.empty((M, 2))
         true_c = np.empty(M)
         true_s = np.empty(M)
+        camera_z = np.zeros((M, 2))  # zeros: what a stream switched off contributes
+        camera_u = np.zeros(M)
         view = seen[b]
         if perceive:
             _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
-        refresh = 0
         for step in range(n_steps):
             t = first_step + step
             cx = 0.0
@@ -198,14 +314,14 @@ def advance(
                     now[i, 3] = s
                 _spring_forces(pos, ends, spring_stiffness, spring_rest, mutual, true_force)
                 if t % period == 0:  # a camera update: the state D steps ago, noised
+                    camera_draws(camera_state[b], sigma_p > 0.0, miss_p > 0.0, camera_z, camera_u)
                     old = ring[b, (t + 1) % ring_len]
                     for i in range(N):
-                        if t == 0 or camera_uniforms[b, refresh, i] >= miss_p:
-                            view[i, 0] = old[i, 0] + sigma_p * camera_noise[b, refresh, i, 0]
-                            view[i, 1] = old[i, 1] + sigma_p * camera_noise[b, refresh, i, 1]
+                        if t == 0 or camera_u[i] >= miss_p:
+                            view[i, 0] = old[i, 0] + sigma_p * camera_z[i, 0]
+                            view[i, 1] = old[i, 1] + sigma_p * camera_z[i, 1]
                             view[i, 2] = old[i, 2]
                             view[i, 3] = old[i, 3]
-                    refresh += 1
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             sox, soy = ox, oy  # the rotation centre the robots see
             if perceive and use_centroid:

@@ -26,22 +26,31 @@ Four parameters (:data:`aes_ros.params.PARAMS`), all off by default:
   this probability and keeps its last perceived pose (at step 0 nobody is
   missed: the first frame initialises every pose).
 
-Randomness. Run ``seed`` draws its perception from its own generator,
-``perception_generators(np.random.default_rng([seed, 1]))``: two children of it,
-one for the position noise, one for the misses. So the run's own generator
-(initial state, sensing and actuation noise) is untouched and a run with
-perception off is bit-identical to one from before perception existed; noise
-and misses are separate streams, so switching one on does not change the
-other's draws (common random numbers across a study). Draws are made only at
-camera updates and only for what is on: per update, (N, 2) standard normals from
-the noise generator if σ_p > 0 and (N,) uniforms in [0, 1) from the miss
-generator if the miss probability is > 0, for every robot (a missed robot's
-draws are thrown away). A stream drawn an update at a time
-(:class:`PerceptionStream`) or many updates at a time (the simulator) gives the
-same numbers, so the stream built on ``default_rng([seed, 1])`` sees exactly
-what run ``seed`` of :func:`aes_ros.simulator.simulate` sees (for a camera at
-the control rate this costs as much as drawing every step would; a slower
-camera draws less).
+Randomness. Run ``seed`` draws its perception from two generators of its own
+(:func:`perception_state`), one for the position noise, one for the misses:
+xoshiro256** (Blackman & Vigna 2018; 256-bit state, period 2²⁵⁶ − 1), seeded with
+the two children of ``np.random.SeedSequence([seed, 1])``. Standard normals come
+from the ziggurat (Marsaglia & Tsang 2000, numpy's 256-layer variant: exact
+N(0, 1) to 52-bit resolution), uniforms are 53-bit doubles in [0, 1). Not numpy
+Generators, because the simulator draws inside its numba kernel, per run on the
+run's core, at each camera update (about 4 ns a normal): numpy's draws, made
+before each kernel call and not overlapped with it, made perception on cost
+1.4–1.6 × off, above the 1.5 × issue #25 allows. The draws are one compiled
+function, :func:`aes_ros.kernel.camera_draws`, which the kernel, the numpy path
+(:func:`draw_camera`) and :class:`PerceptionStream` all call, so the three draw
+identical numbers. The run's own generator (initial state, sensing and actuation
+noise) is untouched, so a run with perception off is bit-identical to one from
+before perception existed; noise and misses are separate streams, so switching
+one on does not change the other's draws (common random numbers across a study).
+Draws are made only at camera updates and only for what is on: per update, 2N
+standard normals (robot 0's x, y, robot 1's, …) from the noise generator if
+σ_p > 0 and N uniforms from the miss generator if the miss probability is > 0,
+for every robot (a missed robot's draws are thrown away). A stream drawn an
+update at a time (:class:`PerceptionStream`) or many updates at a time
+(:func:`draw_camera`) gives the same numbers, so the stream of ``seed`` sees
+exactly what run ``seed`` of :func:`aes_ros.simulator.simulate` sees (for a
+camera at the control rate this costs as much as drawing every step would; a
+slower camera draws less).
 
 The pure functions below are the reference (the simulator's numpy backend uses
 them; the numba kernel in :mod:`aes_ros.kernel` does the same per robot);
@@ -55,6 +64,8 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+
+from aes_ros.kernel import camera_draws
 
 
 @dataclass(frozen=True)
@@ -118,22 +129,26 @@ def refresh_steps(first: int, n: int, period: int) -> np.ndarray:
     return np.arange(start, first + n, period)
 
 
-def perception_generators(rng: np.random.Generator) -> tuple[np.random.Generator, ...]:
-    """(noise generator, miss generator): two independent children of ``rng``."""
-    noise_rng, miss_rng = rng.spawn(2)
-    return noise_rng, miss_rng
+def perception_state(seed: int) -> np.ndarray:
+    """The perception generators of run ``seed`` (module docstring, Randomness).
+
+    Returns (2, 4) uint64: the xoshiro256** states of the noise and of the miss
+    generator, from the two children of ``np.random.SeedSequence([seed, 1])``.
+    """
+    noise, miss = np.random.SeedSequence([seed, 1]).spawn(2)
+    return np.stack([noise.generate_state(4, np.uint64), miss.generate_state(4, np.uint64)])
 
 
 def draw_camera(
-    noise_rng: np.random.Generator,
-    miss_rng: np.random.Generator,
+    state: np.ndarray,
     settings: PerceptionSettings,
     n_refreshes: int,
     n_robots: int,
     out: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The draws of ``n_refreshes`` camera updates.
+    """The draws of ``n_refreshes`` camera updates of one run, as the kernel makes them.
 
+    state : (2, 4) uint64 (:func:`perception_state`), advanced in place.
     Returns noise (R, N, 2), standard normals (zeros when σ_p = 0), and uniforms
     (R, N) in [0, 1) (zeros when the miss probability is 0), R = ``n_refreshes``;
     into the leading R rows of ``out`` if given.
@@ -141,10 +156,9 @@ def draw_camera(
     if out is None:
         out = (np.zeros((n_refreshes, n_robots, 2)), np.zeros((n_refreshes, n_robots)))
     noise, uniforms = out[0][:n_refreshes], out[1][:n_refreshes]
-    if settings.sigma > 0.0:
-        noise_rng.standard_normal(out=noise)
-    if settings.miss > 0.0:
-        miss_rng.random(out=uniforms)
+    z, u = np.zeros((n_refreshes * n_robots, 2)), np.zeros(n_refreshes * n_robots)
+    camera_draws(state, settings.sigma > 0.0, settings.miss > 0.0, z, u)
+    noise[...], uniforms[...] = z.reshape(noise.shape), u.reshape(uniforms.shape)
     return noise, uniforms
 
 
@@ -196,15 +210,15 @@ class PerceptionStream:
     """The perceived frame of ONE run of N robots, fed the true state a step at a time.
 
     For a node that produces the poses the robots see (e.g. ``/swarm/poses`` of a
-    simulated tracker); with ``rng = np.random.default_rng([seed, 1])`` it gives
-    what run ``seed`` of the offline simulator gives for the same true states.
+    simulated tracker); it draws what run ``seed`` of the offline simulator draws,
+    so it gives that run's frames for the same true states.
 
     Parameters
     ----------
     settings : σ_p, τ, f_cam, miss probability.
     n_robots : N.
     dt : control step Δt [s]: :meth:`see` is called once per step.
-    rng : perception draws (split with :func:`perception_generators`).
+    seed : the run's seed (its generators: :func:`perception_state`).
     """
 
     def __init__(
@@ -212,12 +226,12 @@ class PerceptionStream:
         settings: PerceptionSettings,
         n_robots: int,
         dt: float,
-        rng: np.random.Generator,
+        seed: int,
     ) -> None:
         self.settings, self.n_robots = settings, n_robots
         self.period = camera_period_steps(settings.rate, dt)
         self.delay = delay_steps(settings.delay, dt)
-        self._noise_rng, self._miss_rng = perception_generators(rng)
+        self._state = perception_state(seed)
         self._history: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=self.delay + 1)
         self._next_step = 0
         self._positions = np.zeros((n_robots, 2))
@@ -243,9 +257,7 @@ class PerceptionStream:
         else:
             self._history.append(state)
         if step % self.period == 0:
-            noise, uniforms = draw_camera(
-                self._noise_rng, self._miss_rng, self.settings, 1, self.n_robots
-            )
+            noise, uniforms = draw_camera(self._state, self.settings, 1, self.n_robots)
             delayed_positions, delayed_headings = self._history[0]
             self._positions, self._headings = perceived_frame(
                 delayed_positions,

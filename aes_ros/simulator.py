@@ -8,8 +8,9 @@ single runs with the same seeds.
 
 With perception error on (``perception_*`` parameters, :mod:`aes_ros.perception`)
 the robots' commands come from a perceived frame; its draws come from a second
-generator per run, ``default_rng([seed, 1])``, so the first one draws exactly
-what it drew before perception existed and batching still changes nothing.
+pair of generators per run (:func:`aes_ros.perception.perception_state`), so the
+first one draws exactly what it drew before perception existed and batching still
+changes nothing.
 
 Two backends compute the same thing: ``"numba"`` (default; the fused kernel in
 :mod:`aes_ros.kernel`, runs spread over the cores) and ``"numpy"`` (the plain
@@ -44,7 +45,7 @@ from aes_ros.perception import (
     draw_camera,
     missed_robots,
     perceived_frame,
-    perception_generators,
+    perception_state,
     refresh_steps,
     ring_slots,
 )
@@ -171,7 +172,7 @@ def simulate(
         camera = (
             _Camera(perception, scenario.dt, N, [seeds[i] for i in idx]) if perceiving else None
         )
-        chunks = _NoiseChunks([rngs[i] for i in idx], N, noise, camera)
+        chunks = _NoiseChunks([rngs[i] for i in idx], N, noise)
         for start in range(0, T, CHUNK):
             n = min(CHUNK, T - start)
             m, ph, hh = sim.advance(p, h, *chunks.next(start, n), n, stop_at[idx], start, camera)
@@ -217,61 +218,44 @@ _POOL = ThreadPoolExecutor(max_workers=2)
 
 
 class _Camera:
-    """The camera of a batch of runs (:mod:`aes_ros.perception`): its settings, each
-    run's generators and the draws of the camera updates in the current chunk,
-    noise (B, R, N, 2) and uniforms (B, R, N) (R = at most CHUNK), filled by
-    :class:`_NoiseChunks`. The steppers keep the perceived frame and the delay ring.
+    """The camera of a batch of runs (:mod:`aes_ros.perception`): its settings and
+    each run's generators, ``states`` (B, 2, 4) uint64, which the numba kernel
+    draws from at each update. For the numpy path, :meth:`draw` keeps the draws
+    of a chunk's updates, noise (B, R, N, 2) and uniforms (B, R, N). The steppers
+    keep the perceived frame and the delay ring.
     """
 
     def __init__(
         self, settings: PerceptionSettings, dt: float, n_robots: int, seeds: list[int]
     ) -> None:
-        B, N = len(seeds), n_robots
-        self.settings = settings
+        self.settings, self.n_robots = settings, n_robots
         self.period = camera_period_steps(settings.rate, dt)
         self.delay = delay_steps(settings.delay, dt)
-        self.rngs = [perception_generators(np.random.default_rng([s, 1])) for s in seeds]
-        most = len(refresh_steps(0, CHUNK, self.period))
-        self.noise, self.uniforms = np.zeros((B, most, N, 2)), np.zeros((B, most, N))
-        self.n_refreshes = 0
+        self.states = np.stack([perception_state(s) for s in seeds])
 
-    def draw(self, b: int) -> None:
-        """Fill run ``b``'s draws of the current chunk's ``n_refreshes`` updates."""
-        draw_camera(
-            *self.rngs[b],
-            self.settings,
-            self.n_refreshes,
-            self.noise.shape[2],
-            out=(self.noise[b], self.uniforms[b]),
-        )
+    def draw(self, first_step: int, n: int) -> None:
+        """Every run's draws of the updates among steps ``first_step`` … + n - 1."""
+        R = len(refresh_steps(first_step, n, self.period))
+        draws = [draw_camera(state, self.settings, R, self.n_robots) for state in self.states]
+        self.noise = np.stack([noise for noise, _ in draws])
+        self.uniforms = np.stack([uniforms for _, uniforms in draws])
 
 
 class _NoiseChunks:
-    """Noise of every run, CHUNK steps at a time, into reused (B, CHUNK, N) buffers,
-    and the camera's draws of those steps' updates (into the :class:`_Camera`).
+    """Noise of every run, CHUNK steps at a time, into reused (B, CHUNK, N) buffers.
 
     Drawn on two threads (numpy releases the GIL while filling); each run's
     stream depends only on its own generator, so batching never changes a run.
     """
 
-    def __init__(
-        self,
-        rngs: list[np.random.Generator],
-        n_robots: int,
-        noise: bool,
-        camera: _Camera | None = None,
-    ) -> None:
+    def __init__(self, rngs: list[np.random.Generator], n_robots: int, noise: bool) -> None:
         shape = (len(rngs), CHUNK, n_robots)
-        self.rngs, self.noise, self.camera = rngs, noise, camera
+        self.rngs, self.noise = rngs, noise
         self.buffers = (np.zeros(shape), np.zeros(shape), np.zeros(shape))
 
     def next(self, start: int, n: int) -> Noise:
-        """(xi_x, xi_y, xi_theta), each (B, CHUNK, N), for the CHUNK steps from
-        ``start``; the camera draws for the updates among its first ``n`` steps."""
-        cam = self.camera
-        if cam is not None:
-            cam.n_refreshes = len(refresh_steps(start, n, cam.period))
-        if self.noise or (cam is not None and cam.n_refreshes > 0):
+        """(xi_x, xi_y, xi_theta), each (B, CHUNK, N), for the CHUNK steps from ``start``."""
+        if self.noise:
             half = len(self.rngs) // 2
             if half < 8:
                 self._fill(0, len(self.rngs))
@@ -281,14 +265,11 @@ class _NoiseChunks:
 
     def _fill(self, lo: int, hi: int) -> None:
         for b in range(lo, hi):
-            if self.noise:
-                draw_noise(
-                    self.rngs[b],
-                    (CHUNK, self.buffers[0].shape[2]),
-                    out=tuple(buf[b] for buf in self.buffers),
-                )
-            if self.camera is not None:
-                self.camera.draw(b)
+            draw_noise(
+                self.rngs[b],
+                (CHUNK, self.buffers[0].shape[2]),
+                out=tuple(buf[b] for buf in self.buffers),
+            )
 
 
 def _final_metrics(
@@ -346,13 +327,15 @@ class _NumpyStepper:
     ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
         sc = self.scenario
         seen_pos, seen_head = pos, head
-        if camera is not None and first_step == 0:
-            self.seen = (pos.copy(), head.copy())
-            length = camera.delay + 1
-            self.ring = (
-                np.repeat(pos[:, None], length, axis=1),
-                np.repeat(head[:, None], length, axis=1),
-            )
+        if camera is not None:
+            if first_step == 0:
+                self.seen = (pos.copy(), head.copy())
+                length = camera.delay + 1
+                self.ring = (
+                    np.repeat(pos[:, None], length, axis=1),
+                    np.repeat(head[:, None], length, axis=1),
+                )
+            camera.draw(first_step, n)
         refresh = 0
         m = np.empty((len(head), n, 5))
         ph = np.empty((len(head), n, *pos.shape[1:])) if self.record else None
@@ -435,7 +418,7 @@ class _NumbaStepper:
         self.record = record
         B = len(run_gains)
         self.seen, self.ring = np.empty((B, 0, 4)), np.empty((B, 0, 0, 4))
-        self.draws = (np.empty((B, 0, 0, 2)), np.empty((B, 0, 0)))
+        self.camera_state = np.empty((B, 0, 4), np.uint64)
 
     def advance(
         self,
@@ -455,14 +438,14 @@ class _NumbaStepper:
                 state = np.concatenate([pos, np.cos(head)[..., None], np.sin(head)[..., None]], -1)
                 self.seen = state.copy()
                 self.ring = np.repeat(state[:, None], camera.delay + 1, axis=1)
-            self.draws = (camera.noise, camera.uniforms)
+            self.camera_state = camera.states
         m = np.empty((B, CHUNK, 5))
         ph = np.empty((B, CHUNK, N, 2)) if self.record else np.empty((0, 0, 0, 2))
         hh = np.empty((B, CHUNK, N)) if self.record else np.empty((0, 0, 0))
         advance(
             pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh,
             np.ascontiguousarray(stop_at), first_step, self.springs, self.seen, self.ring,
-            *self.draws,
+            self.camera_state,
         )  # fmt: skip
         if not self.record:
             return m[:, :n], None, None

@@ -6,10 +6,10 @@ the same model as the offline simulator's (noise, delay, camera rate, misses), f
 true state once per control step. The frame is keyed by the world's step: a state
 published again (lockstep re-publishing, a resumed bridge waiting for its robots)
 shows the same frame, and the stream advances only when the world steps. The draws
-come from ``default_rng([seed, 1])``, the generator run ``seed`` of the offline
-simulator uses, so the two agree in distribution (and step for step when the world
-moves as the offline model does). The stamp stays the step's time: the robots answer
-that step; what they see in it is as old as the delay.
+are those of run ``seed`` of the offline simulator (the same generators), so the two
+agree in distribution (and step for step when the world moves as the offline model
+does). The stamp stays the step's time: the robots answer that step; what they see
+in it is as old as the delay.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ class PerceivedPoses:
     control step ``dt`` [s], run ``seed``)."""
 
     def __init__(self, settings: PerceptionSettings, n_robots: int, dt: float, seed: int) -> None:
-        self.stream = PerceptionStream(settings, n_robots, dt, np.random.default_rng([seed, 1]))
+        self.stream = PerceptionStream(settings, n_robots, dt, seed)
         self._first: int | None = None
         self._step = -1
         self._frame: tuple[np.ndarray, np.ndarray] | None = None

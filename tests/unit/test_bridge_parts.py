@@ -98,7 +98,7 @@ def test_perceived_poses_are_one_frame_per_world_step_whatever_is_published_agai
 
     settings = PerceptionSettings(sigma=0.01, delay=0.1, miss=0.2)
     seen = PerceivedPoses(settings, 4, 0.05, seed=3)
-    reference = PerceptionStream(settings, 4, 0.05, np.random.default_rng([3, 1]))
+    reference = PerceptionStream(settings, 4, 0.05, seed=3)
     rng = np.random.default_rng(0)
     for world_step in range(120, 130):  # resumed at step 120
         xy, yaw = rng.normal(size=(4, 2)), rng.normal(size=4)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
+import numba
 import numpy as np
 import pytest
 
@@ -19,7 +20,7 @@ from aes_ros.perception import (
     delay_steps,
     draw_camera,
     perceived_frame,
-    perception_generators,
+    perception_state,
 )
 
 DATA = Path(__file__).parents[1] / "data"
@@ -95,9 +96,7 @@ def test_position_noise_changes_what_robots_see_never_where_they_are(backend: st
 def test_perceived_positions_carry_gaussian_noise_of_std_sigma_and_exact_headings() -> None:
     sigma, n_robots, n_frames = 0.003, 50, 400
     settings = PerceptionSettings(sigma=sigma)
-    noise, _ = draw_camera(
-        *perception_generators(np.random.default_rng(0)), settings, n_frames, n_robots
-    )
+    noise, _ = draw_camera(perception_state(0), settings, n_frames, n_robots)
     rng = np.random.default_rng(1)
     true_pos = rng.uniform(-1, 1, (n_frames, n_robots, 2))
     true_head = rng.uniform(-np.pi, np.pi, (n_frames, n_robots))
@@ -115,7 +114,7 @@ def test_perceived_positions_carry_gaussian_noise_of_std_sigma_and_exact_heading
 def _steps_seen(settings: PerceptionSettings, n_steps: int, n_robots: int = 3) -> np.ndarray:
     """Feed a stream the state 'robot at x = step' and return the x it shows at each
     step (n_steps, n_robots): which step's state the robots see."""
-    stream = PerceptionStream(settings, n_robots, 0.05, np.random.default_rng(0))
+    stream = PerceptionStream(settings, n_robots, 0.05, seed=0)
     seen = []
     for step in range(n_steps):
         positions = np.zeros((n_robots, 2))
@@ -127,7 +126,7 @@ def _steps_seen(settings: PerceptionSettings, n_steps: int, n_robots: int = 3) -
 
 
 def test_a_jump_appears_exactly_the_delay_later() -> None:
-    stream = PerceptionStream(PerceptionSettings(delay=0.25), 2, 0.05, np.random.default_rng(0))
+    stream = PerceptionStream(PerceptionSettings(delay=0.25), 2, 0.05, seed=0)
     assert stream.delay == 5
     shown = []
     for step in range(20):
@@ -168,15 +167,13 @@ def test_missed_robots_keep_their_last_pose_at_the_miss_rate() -> None:
 
 
 def test_a_stream_sees_what_the_simulators_robots_see() -> None:
-    """Fed a run's true states, :class:`PerceptionStream` built on
-    ``default_rng([seed, 1])`` gives the frames the simulator's robots acted on:
-    their commands from that frame lead to the run's next true state."""
+    """Fed a run's true states, :class:`PerceptionStream` for run ``seed`` gives the
+    frames the simulator's robots acted on: their commands from that frame lead to
+    the run's next true state."""
     sc = scenario.load("combined", {"rows": 3, "cols": 4, "duration": 2.0, **CAMERA})
     seed = 7
     run = simulator.simulate(sc, [seed], noise=False)
-    stream = PerceptionStream(
-        PerceptionSettings.from_mapping(sc.values), 12, sc.dt, np.random.default_rng([seed, 1])
-    )
+    stream = PerceptionStream(PerceptionSettings.from_mapping(sc.values), 12, sc.dt, seed)
     for step in range(sc.n_steps):
         pos, head = run.positions[0, step], run.headings[0, step]
         seen_pos, seen_head = stream.see(pos, head, step)
@@ -187,8 +184,33 @@ def test_a_stream_sees_what_the_simulators_robots_see() -> None:
         np.testing.assert_allclose(next_head, run.headings[0, step + 1], atol=1e-12)
 
 
+def test_noise_and_misses_are_separate_streams_drawn_alike_one_or_many_updates_at_a_time() -> None:
+    """The draws of run ``seed``: switching misses on leaves the noise as it was (and
+    the other way round), and :class:`PerceptionStream`, drawing an update at a time,
+    shows the frames made of :func:`draw_camera`'s draws of all updates at once (the
+    kernel calls the same draw function at each update)."""
+    n_updates, n_robots, seed = 30, 5, 7
+    both = PerceptionSettings(sigma=1.0, miss=0.3)
+    noise, uniforms = draw_camera(perception_state(seed), both, n_updates, n_robots)
+    alone = draw_camera(perception_state(seed), PerceptionSettings(sigma=1.0), n_updates, n_robots)
+    np.testing.assert_array_equal(alone[0], noise)
+    assert not alone[1].any()
+    alone = draw_camera(perception_state(seed), PerceptionSettings(miss=0.3), n_updates, n_robots)
+    np.testing.assert_array_equal(alone[1], uniforms)
+    assert not alone[0].any()
+
+    stream = PerceptionStream(both, n_robots, 0.05, seed)
+    expected = np.zeros((n_robots, 2))
+    for step in range(n_updates):
+        pos, _ = stream.see(np.zeros((n_robots, 2)), np.zeros(n_robots), step)
+        seen = (uniforms[step] >= both.miss) | (step == 0)
+        expected[seen] = noise[step][seen]  # the truth is 0 and σ_p = 1: the frame is z
+        np.testing.assert_array_equal(pos, expected)
+    assert 0 < (uniforms[1:] < both.miss).sum() < uniforms[1:].size
+
+
 def test_a_stream_wants_its_steps_in_order() -> None:
-    stream = PerceptionStream(PerceptionSettings(delay=0.1), 2, 0.05, np.random.default_rng(0))
+    stream = PerceptionStream(PerceptionSettings(delay=0.1), 2, 0.05, seed=0)
     stream.see(np.zeros((2, 2)), np.zeros(2), 0)
     with pytest.raises(ValueError, match="expected 1"):
         stream.see(np.zeros((2, 2)), np.zeros(2), 3)
@@ -210,7 +232,7 @@ def test_fused_kernel_equals_numpy_reference_with_perception(setup: str, extra: 
     np.testing.assert_allclose(fast.metrics, ref.metrics, atol=1e-9)
 
 
-def test_with_perception_a_batch_equals_its_single_runs() -> None:
+def test_with_perception_a_batch_equals_its_single_runs_on_any_number_of_threads() -> None:
     sc = scenario.load("combined", {"duration": 3.0, "rows": 4, "cols": 5, **CAMERA})
     seeds = [11, 12, 13]
     batch = simulator.simulate(sc, seeds)
@@ -220,6 +242,13 @@ def test_with_perception_a_batch_equals_its_single_runs() -> None:
         np.testing.assert_array_equal(batch.metrics[b], single.metrics[0])
     again = simulator.simulate(sc, seeds)
     np.testing.assert_array_equal(again.positions, batch.positions)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        one_thread = simulator.simulate(sc, seeds)
+    finally:
+        numba.set_num_threads(threads)
+    np.testing.assert_array_equal(one_thread.positions, batch.positions)
 
 
 @pytest.mark.parametrize(
