@@ -65,8 +65,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aes_ros.kernel import camera_draws
-
 
 @dataclass(frozen=True)
 class PerceptionSettings:
@@ -157,6 +155,10 @@ def draw_camera(
         out = (np.zeros((n_refreshes, n_robots, 2)), np.zeros((n_refreshes, n_robots)))
     noise, uniforms = out[0][:n_refreshes], out[1][:n_refreshes]
     z, u = np.zeros((n_refreshes * n_robots, 2)), np.zeros(n_refreshes * n_robots)
+    # numba only here: the bridge and the launcher import this module for the settings
+    # and would otherwise load numba (0.15-0.3 s) at every start, a restart's included
+    from aes_ros.kernel import camera_draws
+
     camera_draws(state, settings.sigma > 0.0, settings.miss > 0.0, z, u)
     noise[...], uniforms[...] = z.reshape(noise.shape), u.reshape(uniforms.shape)
     return noise, uniforms
