@@ -4,7 +4,8 @@ The robots see each other through a tracker's pose list (:mod:`aes_ros.perceptio
 position noise σ_p, delay τ, refresh rate f_cam and per-robot miss probability.
 Each is swept alone, the other three at lab-typical values (:data:`LAB`: a 20 Hz
 overhead camera with 3 mm of noise, 50 ms of latency and 1 % of the robots missed a
-frame), on the combined setup (60 s; ψ̄ (E8) averaged over t ≥ 20 s), for 25 and
+frame), on the combined setup (60 s, commands clipped to the Mona's limits as a lab's
+robots clip them; ψ̄ (E8) averaged over t ≥ 20 s), for 25 and
 100 robots, with the paper's and the TCACS gains of the tuning study. Common random
 numbers throughout: every point runs the same seeds.
 
@@ -111,7 +112,10 @@ def run(out: Path, where: Where, quick: bool = False) -> dict[str, Any]:
         next(g for g in sets if g.label.startswith("paper")),
         next(g for g in sets if g.label.startswith("TCACS, weights (1/N, −1)")),
     ]
-    base = scenario.load("combined").with_overrides({"duration": 20.0 if quick else 60.0})
+    # clip: a lab's robots obey the Mona's limits (the other offline studies do not clip)
+    base = scenario.load("combined").with_overrides(
+        {"duration": 20.0 if quick else 60.0, "clip": True}
+    )
     transient = 5.0 if quick else 20.0
     mc = 3 if quick else 10
     sizes = (25,) if quick else (25, 100)
