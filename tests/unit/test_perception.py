@@ -232,14 +232,12 @@ def test_fused_kernel_equals_numpy_reference_with_perception(setup: str, extra: 
     np.testing.assert_allclose(fast.metrics, ref.metrics, atol=1e-9)
 
 
-def test_with_perception_a_batch_equals_its_single_runs_on_any_number_of_threads() -> None:
+def test_with_perception_a_batch_is_the_same_on_any_number_of_threads() -> None:
+    """(A batch equals its single runs, with perception too:
+    tests/unit/test_simulator.py::test_a_batch_equals_its_single_runs.)"""
     sc = scenario.load("combined", {"duration": 3.0, "rows": 4, "cols": 5, **CAMERA})
     seeds = [11, 12, 13]
     batch = simulator.simulate(sc, seeds)
-    for b, seed in enumerate(seeds):
-        single = simulator.simulate(sc, [seed])
-        np.testing.assert_array_equal(batch.positions[b], single.positions[0])
-        np.testing.assert_array_equal(batch.metrics[b], single.metrics[0])
     again = simulator.simulate(sc, seeds)
     np.testing.assert_array_equal(again.positions, batch.positions)
     threads = numba.get_num_threads()

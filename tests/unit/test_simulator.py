@@ -71,8 +71,14 @@ def test_results_do_not_depend_on_the_time_step() -> None:
     assert np.ptp(orders) < 0.03, stats
 
 
-def test_a_batch_equals_its_single_runs() -> None:
-    sc = scenario.load("combined", {"duration": 5.0, "rows": 4, "cols": 5})
+@pytest.mark.parametrize(
+    "perception",
+    [{}, {"perception_sigma": 0.01, "perception_delay": 0.15, "perception_rate": 10.0,
+          "perception_miss": 0.1}],
+    ids=["exact", "perceived"],
+)  # fmt: skip
+def test_a_batch_equals_its_single_runs(perception) -> None:
+    sc = scenario.load("combined", {"duration": 5.0, "rows": 4, "cols": 5, **perception})
     seeds = [11, 12, 13]
     batch = simulator.simulate(sc, seeds)
     for b, seed in enumerate(seeds):
