@@ -90,6 +90,23 @@ def force_matches(probe: Probe, sheet: Sheet, msg: Vector3Stamped, dead: list[in
     return bool(np.allclose([msg.vector.x, msg.vector.y], f, atol=1e-9))
 
 
+def e4_report(probe: Probe, sheet: Sheet, msgs: list) -> str:
+    """Why no force in ``msgs`` matched E4: per message, its stamp, whether the probe
+    has the poses of that stamp, and the distance to E4 on them (all and none dead)."""
+    lines = [f"E4 check is off: {len(msgs)} forces of robot {WATCHED}, {len(probe.times)} samples"]
+    for m in msgs:
+        t = seconds(m)
+        if not has_sample(probe, m):
+            nearest = probe.times[probe.index_at(t)]
+            lines.append(f"  t={t:.3f}: no poses sample (nearest {nearest:.3f})")
+            continue
+        positions = probe.positions[probe.index_at(t)]
+        got = np.array([m.vector.x, m.vector.y])
+        off = [np.abs(got - sheet.forces(positions, d)[WATCHED]).max() for d in ([], DEAD)]
+        lines.append(f"  t={t:.3f}: |f - E4| = {off[0]:.2e} (18, 19 left out: {off[1]:.2e})")
+    return "\n".join(lines)
+
+
 def host(spawn: Processes, ids: list[int], name: str, *extra: str) -> subprocess.Popen:
     return spawn.start(
         "aes-robot-host", "--ros-args", "-p", "scenario:=linear", "-p", f"num_robots:={N}",
@@ -226,7 +243,18 @@ def test_killed_robots_stop_are_left_out_and_rejoin(spawn, ros_env, probe) -> No
     probe.sample_poses(N)
     t0 = probe.wait_all_moving()
     probe.wait_sim(t0 + 3.0)
-    assert any(force_matches(probe, sheet, m, []) for m in forces[WATCHED][-20:]), "E4 check is off"
+
+    # The check itself: robot 13's force is E4 on the sampled poses. Waited for (a fresh
+    # clone's CI once found none of the last 20 matching, not seen again in 8 loaded
+    # runs here): if it never matches, the report says whether poses were missing or
+    # how far off the force was.
+    def recent() -> list:
+        return forces[WATCHED][-20:]
+
+    try:
+        probe.wait(lambda: any(force_matches(probe, sheet, m, []) for m in recent()), 10.0, "E4")
+    except pytest.fail.Exception:
+        pytest.fail(e4_report(probe, sheet, recent()))
 
     t_last = kill_host(probe, victim, forces)
     t_stopped = check_stopped_within_cmd_timeout(probe, t_last)
