@@ -51,7 +51,7 @@ from aes_ros.ros.conversions import (
 from aes_ros.ros.diagnostics import silent_robots
 from aes_ros.ros.markers import swarm_markers
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import DISPLAY, LATCHED, SENSOR
+from aes_ros.ros.qos import DISPLAY_WRITER, LATCHED, SENSOR
 from dashboard_node.controls import Control, Drive, Enable, SetGain, SimAction
 from dashboard_node.view import SwarmView
 
@@ -132,7 +132,7 @@ class DashboardNode(Node):
         self.create_subscription(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
         self.create_subscription(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
 
-        self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY)
+        self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY_WRITER)
         self.markers_published = 0
         self.frames_made = 0
         self._markers_period = 1.0 / self.get_parameter("markers_rate").value

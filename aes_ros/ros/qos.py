@@ -89,9 +89,16 @@ STREAM_WRITER = QoSProfile(
 )
 
 
-#: /swarm/markers (dashboard → RViz2, Foxglove, a bag): reliable (RViz2's default)
+#: /swarm/markers as a viewer reads it (RViz2, Foxglove): reliable (RViz2's default)
 #: and only the newest; a viewer that lags skips to the latest picture.
 DISPLAY = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)
+
+#: The dashboard's publisher of /swarm/markers: the writer keeps the last 20 pictures
+#: (2 s at 10 Hz) to resend to a reader that missed them. With a history of one, the
+#: recorder lost a picture whenever it fell one frame behind: 4 in the hour's chaos
+#: soak on a shared machine (docs/reliability.md), sequence gaps that the middleware
+#: does not report as lost. Viewers still keep only the newest (DISPLAY).
+DISPLAY_WRITER = QoSProfile(depth=20, reliability=ReliabilityPolicy.RELIABLE)
 
 #: /arena_camera/image_raw (camera → tracker): reliable, only the newest frame. A
 #: 1.2 MB frame is larger than Fast DDS's shared-memory segment and travels as ~20 UDP
