@@ -447,7 +447,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-growth", type=float, default=10.0, help="[%%] after warm-up")
     parser.add_argument("--max-slope", type=float, default=float("inf"), help="[MB/h]")
     parser.add_argument("--seed", type=int, default=1, help="of the chaos's choices")
-    parser.add_argument("--domain", default=None, help="ROS_DOMAIN_ID (default: 120 + pid % 50)")
+    parser.add_argument("--domain", default=None, help="ROS_DOMAIN_ID (default: 120 + pid %% 50)")
     parser.add_argument("--out", type=Path, default=Path("out/bench_soak"))
     args = parser.parse_args(argv)
     domain = args.domain or str(120 + os.getpid() % 50)

@@ -352,9 +352,13 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.experimental import EventsExecutor
     from rclpy.signals import SignalHandlerOptions
 
-    from aes_ros.ros.spin import STARTUP_ERRORS
+    from aes_ros.ros.spin import STARTUP_ERRORS, node_help, wants_help
     from dashboard_node.server import Dashboard
 
+    if wants_help(args):
+        # rclpy ignores --help: without this, `aes-dashboard --help` served a dashboard
+        print(node_help(DashboardNode))
+        return 0
     node = None
     done = threading.Event()
     threads: list[threading.Thread] = []
