@@ -266,8 +266,14 @@ def test_camera_frames_are_recorded_only_when_asked_and_at_most_at_the_rate(
     if not rate:
         assert frames == []
         return
-    assert 10 <= len(frames) <= 12, stamps  # 3 s at 4 a second (+1: the first)
+    # The camera's QoS is best effort: frames sent before the recorder's reader matched
+    # the writer are lost (a fresh clone's CI once lost the first 0.9 s), so the count
+    # is judged over the span that was recorded: at most one frame per 1/RATE, and no
+    # period without one.
+    assert len(frames) <= 12, stamps  # 3 s at 4 a second (+1: the first)
+    assert stamps[-1] - stamps[0] >= 1.5, stamps
     assert np.all(np.diff(stamps) >= 1.0 / rate - 1e-9)
+    assert np.all(np.diff(stamps) < 2.0 / rate), stamps  # no period left without one
     assert frames[0].width == 640 and bytes(frames[0].data) == frame.tobytes()
     assert any(topic == names.CAMERA_INFO for topic, _, _ in read_bag(bag))
 
