@@ -198,6 +198,19 @@ def _spring_forces(
                 out[j, 1] -= scale * ry
 
 
+@njit(inline="always")
+def _centroid(points: np.ndarray) -> tuple[float, float]:
+    """Mean of ``points[:, 0]`` and ``points[:, 1]`` (``points``: (N, ≥2) [m]), summed in
+    index order so that every run's result is the same to the bit."""
+    cx = 0.0
+    cy = 0.0
+    for i in range(points.shape[0]):
+        cx += points[i, 0]
+        cy += points[i, 1]
+    n = points.shape[0]
+    return cx / n, cy / n
+
+
 @njit(cache=True, fastmath=False, parallel=True)
 def advance(
     positions: np.ndarray,
@@ -290,13 +303,7 @@ def advance(
             _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
         for step in range(n_steps):
             t = first_step + step
-            cx = 0.0
-            cy = 0.0
-            for i in range(N):
-                cx += pos[i, 0]
-                cy += pos[i, 1]
-            cx /= N
-            cy /= N
+            cx, cy = _centroid(pos)
             if use_centroid:
                 ox, oy = cx, cy
             else:
@@ -325,13 +332,7 @@ def advance(
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             sox, soy = ox, oy  # the rotation centre the robots see
             if perceive and use_centroid:
-                sox = 0.0
-                soy = 0.0
-                for i in range(N):
-                    sox += view[i, 0]
-                    soy += view[i, 1]
-                sox /= N
-                soy /= N
+                sox, soy = _centroid(view)
             psi = 0.0
             total = 0.0
             sum_c = 0.0
