@@ -202,12 +202,12 @@ def _spring_forces(
 def _centroid(points: np.ndarray) -> tuple[float, float]:
     """Mean of ``points[:, 0]`` and ``points[:, 1]`` (``points``: (N, ≥2) [m]), summed in
     index order so that every run's result is the same to the bit."""
+    n = points.shape[0]
     cx = 0.0
     cy = 0.0
-    for i in range(points.shape[0]):
+    for i in range(n):
         cx += points[i, 0]
         cy += points[i, 1]
-    n = points.shape[0]
     return cx / n, cy / n
 
 
