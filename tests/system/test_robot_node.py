@@ -248,10 +248,13 @@ def test_odom_source_and_neighbour_timeout(spawn, probe):
     probe.until(lambda: round_([]), force_is([]))
 
 
-@pytest.mark.parametrize("source", ["poses", "odom"])
-def test_host_runs_every_robot(spawn, probe, source):
+@pytest.mark.parametrize(("source", "per_participant"), [("poses", 0), ("odom", 0), ("poses", 1)])
+def test_host_runs_every_robot(spawn, probe, source, per_participant):
     """A host with 4 robots publishes every robot's command, equal to the control law
-    with the process-wide -p overrides (use_sim_time among them) applied to every robot."""
+    with the process-wide -p overrides (use_sim_time among them) applied to every robot;
+    also with each robot in a DDS participant of its own (``robots_per_participant``,
+    what a host does under a discovery server), where each robot's parameters still
+    answer and reject a bad value."""
     proc = spawn.start(
         "aes-robot-host",
         "--ros-args",
@@ -265,6 +268,8 @@ def test_host_runs_every_robot(spawn, probe, source):
         "alpha:=0.1",
         "-p",
         "use_sim_time:=true",
+        "-p",
+        f"robots_per_participant:={per_participant}",
         *NOISE_OFF,
         name="host",
     )
@@ -307,6 +312,11 @@ def test_host_runs_every_robot(spawn, probe, source):
     assert probe.get_parameters(
         "/mona_2/aes_robot", ["robot_id", "alpha", "neighbor_source", "use_sim_time"]
     ) == [2, 0.1, source, True]
+    participants = 4 if per_participant == 1 else 1
+    assert f"{participants} DDS participant(s)" in spawn.log(proc).read_text()
+    for i in range(4):
+        (result,) = probe.set_parameters(f"/mona_{i}/aes_robot", [Parameter("alpha", value=-1.0)])
+        assert not result.successful and "alpha" in result.reason
     assert spawn.stop(proc) == 0  # SIGINT: clean shutdown
     assert "Traceback" not in spawn.log(proc).read_text()
 
