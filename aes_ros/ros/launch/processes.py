@@ -21,17 +21,23 @@ from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 @dataclass
 class Child:
-    """A started process: its name, command line, handle and log file."""
+    """A started process: its name, command line, handle and log file; ``start`` is
+    the byte of the log where this process's output begins (a log is appended to: by a
+    restarted process, and by every launch into the same output directory)."""
 
     name: str
     cmd: list[str]
     proc: subprocess.Popen
     log: Path
+    start: int = 0
 
     def tail(self, chars: int = 2000) -> str:
-        """The last ``chars`` characters of the log ("" if unreadable)."""
+        """The last ``chars`` characters of this process's output ("" if unreadable):
+        never an earlier process's, whose ready line would end a wait at once."""
         try:
-            text = self.log.read_text(errors="replace")
+            with open(self.log, "rb") as fh:
+                fh.seek(self.start)
+                text = fh.read().decode(errors="replace")
         except OSError:
             return ""
         return text[-chars:]
@@ -94,6 +100,7 @@ class ProcessSet:
         argv = [executable(cmd[0]), *cmd[1:]]
         log = self.log_dir / f"{name}.log"
         with open(log, "a") as fh:
+            start = fh.tell()
             proc = subprocess.Popen(
                 argv,
                 env={**self.env, **self.env_for.get(name, {})},
@@ -103,7 +110,7 @@ class ProcessSet:
                 start_new_session=True,
                 preexec_fn=_die_with_parent,
             )
-        child = Child(name, argv, proc, log)
+        child = Child(name, argv, proc, log, start)
         self.children.append(child)
         if self.pid_file is not None:
             live = [str(c.proc.pid) for c in self.children if c.proc.poll() is None]
