@@ -19,6 +19,12 @@ without the parameter services (``start_parameter_services``).
    and once each in a domain of its own (no discovery between them: the floor any split
    of the robots over processes could reach).
 
+3. ``1000 nodes in one process in P participants``: the robot host's case. One process
+   makes the nodes in P rclpy contexts (DDS participants, as ``aes-robot-host`` does with
+   ``robots_per_participant``) while another, like the bridge, subscribes to every
+   node's ``cmd_vel``; wall seconds from starting both until that reader has matched
+   every node's publisher, with simple discovery and through a discovery server.
+
 Fast DDS runs with its defaults, or with ``--profile launch`` with the profile every
 process of a launch gets (``aes_ros/ros/fastdds_profile.xml``: among others, a participant
 does not match its own endpoints, which removes most of the cost in one process).
@@ -29,19 +35,23 @@ Usage::
     python bench/bench_startup.py --profile launch    # ~5 min
     python bench/bench_startup.py --quick             # smaller counts (~1 min)
 
-Prints a table and, as its last line, ``RESULT robots=1000 … start_s_shared=…
-start_s_server=… start_s_isolated=… services_ratio_<N>=… machine_ref_us=…``
-(ratios of the same run).
+Prints tables and, as its last line, ``RESULT robots=1000 … start_s_shared=…
+start_s_server=… start_s_isolated=… services_ratio_<N>=… matched_s_<mode>_p<P>=…
+machine_ref_us=…`` (ratios of the same run).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from aes_ros.ros import discovery as dds
 from aes_ros.ros.launch.processes import PROFILE_VARIABLES, fastdds_environment
@@ -54,17 +64,25 @@ from bench_ros import machine_reference_us  # a sibling script, not a package
 FIRST_DOMAIN = 150
 
 
-def child(first: int, count: int, services: bool) -> int:
-    """Create ``count`` robot-like nodes, print the seconds it took, wait to be killed."""
+def child(first: int, count: int, services: bool, participants: int = 1) -> int:
+    """Create ``count`` robot-like nodes (in ``participants`` rclpy contexts, consecutive
+    blocks as the robot host makes them), print the seconds it took, wait to be killed."""
     import rclpy
     from geometry_msgs.msg import Twist, Vector3Stamped
     from rclpy.node import Node
 
-    rclpy.init()
+    contexts = [rclpy.Context() for _ in range(participants)]
+    for context in contexts:
+        rclpy.init(context=context)
     start = time.perf_counter()
     nodes = []
-    for i in range(first, first + count):
-        node = Node("aes_robot", namespace=f"mona_{i}", start_parameter_services=services)
+    for k, i in enumerate(range(first, first + count)):
+        node = Node(
+            "aes_robot",
+            namespace=f"mona_{i}",
+            start_parameter_services=services,
+            context=contexts[k * participants // count],
+        )
         node.create_publisher(Twist, "cmd_vel", 1)
         node.create_publisher(Vector3Stamped, "aes_force", 1)
         nodes.append(node)
@@ -72,6 +90,36 @@ def child(first: int, count: int, services: bool) -> int:
     # Killed, with all the others at once, by the parent: tearing the nodes down one by
     # one is quadratic too, and a process that leaves while others still send to it can
     # leave a shared-memory port locked (Fast DDS then blocks its senders for good).
+    sys.stdin.read()
+    return 0
+
+
+def reader(count: int) -> int:
+    """Subscribe to the ``cmd_vel`` of robots 0 … count-1 (as the bridge does) and print
+    ``matched`` once every subscription has matched a publisher; then wait to be killed."""
+    import rclpy
+    from geometry_msgs.msg import Twist
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.experimental import EventsExecutor
+
+    rclpy.init()
+    node = rclpy.create_node("reader")
+    matched: set[int] = set()
+
+    def on_matched(i: int) -> Callable[[Any], None]:
+        return lambda info: matched.add(i) if info.current_count > 0 else None
+
+    for i in range(count):
+        node.create_subscription(
+            Twist, f"/mona_{i}/cmd_vel", lambda _msg: None, 1,
+            event_callbacks=SubscriptionEventCallbacks(matched=on_matched(i)),
+        )  # fmt: skip
+    print("ready", flush=True)
+    executor = EventsExecutor()
+    executor.add_node(node)
+    while len(matched) < count:
+        executor.spin_once(timeout_sec=0.1)
+    print("matched", flush=True)
     sys.stdin.read()
     return 0
 
@@ -143,6 +191,44 @@ def start_processes(
     return wall
 
 
+def participants_beside_reader(
+    env: dict[str, str], robots: int, participants: int, server: bool, limit: float
+) -> float:
+    """Wall seconds until a reader of every robot's ``cmd_vel``, started first, has matched
+    the ``robots`` nodes (with their services) one process makes in ``participants``
+    participants; ``inf`` after ``limit`` s."""
+    procs: list[subprocess.Popen] = []
+    if server:
+        port = dds.free_udp_port()
+        argv = dds.server_argv(port, "127.0.0.1")
+        procs.append(subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL))
+        env = dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
+    env = dict(env, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(FIRST_DOMAIN))
+    pipes = {"stdin": subprocess.PIPE, "stdout": subprocess.PIPE, "text": True}
+    maker = [sys.executable, __file__, "--child", "0", str(robots), "1", str(participants)]
+    start = time.perf_counter()
+    try:
+        read = subprocess.Popen(
+            [sys.executable, __file__, "--reader", str(robots)], env=env, **pipes
+        )
+        procs.append(read)
+        if read.stdout.readline().strip() != "ready":
+            raise RuntimeError("the reader failed to start")
+        procs.append(subprocess.Popen(maker, env=env, **pipes))
+        # past the limit the reader is killed, and its next line is ""
+        timer = threading.Timer(max(0.0, start + limit - time.perf_counter()), read.kill)
+        timer.start()
+        matched = read.stdout.readline().strip() == "matched"
+        timer.cancel()
+        return time.perf_counter() - start if matched else math.inf
+    finally:
+        for proc in procs:
+            proc.kill()
+        for proc in procs:
+            proc.wait()
+        clean_shared_memory(FIRST_DOMAIN)
+
+
 def one_process(env: dict[str, str], robots: int, services: bool) -> float:
     """Seconds one process takes to create ``robots`` nodes (its own count, not the wall)."""
     (seconds,), _ = _run_children(env, [FIRST_DOMAIN], [(0, robots)], services)
@@ -158,11 +244,14 @@ def main(argv: list[str] | None = None) -> int:
         default="default",
         help="Fast DDS's defaults, or the profile of aes-swarm launch",
     )
-    parser.add_argument("--child", nargs=3, type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--child", nargs="+", type=int, help=argparse.SUPPRESS)
+    parser.add_argument("--reader", type=int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child:
-        first, count, services = args.child
-        return child(first, count, bool(services))
+        first, count, services, *participants = args.child
+        return child(first, count, bool(services), *participants)
+    if args.reader:
+        return reader(args.reader)
 
     env = child_environment(args.profile)
     ref_before = machine_reference_us()
@@ -190,12 +279,30 @@ def main(argv: list[str] | None = None) -> int:
             start_processes(env, robots, p, True, False),
         )
         print(f"{p:>4} {walls[p][0]:>23.1f} {walls[p][1]:>17.1f} {walls[p][2]:>17.1f}", flush=True)
+    print(
+        f"\n{robots} nodes with their 6 services in one process, in P participants, beside a "
+        "reader of their cmd_vel:\nwall seconds until it matched every one"
+    )
+    print(f"{'P':>4} {'simple discovery':>17} {'discovery server':>17}")
+    matched = {}
+    limit = 60.0 if args.quick else 120.0
+    for p in (1, 4) if args.quick else (1, 4, 10):
+        matched[p] = [
+            participants_beside_reader(env, robots, p, server, limit) for server in (False, True)
+        ]
+        print(f"{p:>4} {matched[p][0]:>17.1f} {matched[p][1]:>17.1f}", flush=True)
+    matched_text = " ".join(
+        f"matched_s_{mode}_p{p}={m[k]:.1f}"
+        for p, m in matched.items()
+        for k, mode in enumerate(("simple", "server"))
+    )
     ref = (ref_before + machine_reference_us()) / 2
     best_shared, best_server, best_isolated = (min(w[k] for w in walls.values()) for k in range(3))
     ratio_text = " ".join(f"services_ratio_{n}={r:.1f}" for n, r in ratios.items())
     print(
         f"RESULT profile={args.profile} robots={robots} start_s_shared={best_shared:.1f} "
         f"start_s_server={best_server:.1f} start_s_isolated={best_isolated:.1f} {ratio_text} "
+        f"{matched_text} "
         f"machine_ref_us={ref:.2f}"
     )
     return 0

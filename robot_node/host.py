@@ -42,9 +42,11 @@ from robot_node.swarm_inputs import SwarmInputs
 #: (``robots_per_participant`` 0). Fast DDS 2.14 pairs each endpoint it learns of with
 #: *every* endpoint of its participant, whatever the topic, and rmw sends a participant's
 #: whole graph at each endpoint it makes; through a server, which passes on only the
-#: endpoints of the topics a participant uses, smaller participants cut both. Measured
-#: (1000 robot-like nodes beside a process subscribing to their 1000 ``cmd_vel``): every
-#: subscription matched after 16.3 s in one participant, 6.0 s in 4, 5.5 s in 10.
+#: endpoints of the topics a participant uses, smaller participants cut both.
+#: ``bench/bench_startup.py`` (1000 nodes with their services in one process, beside a
+#: reader of their 1000 ``cmd_vel`` as the bridge is): every reader matched after 17.9 s
+#: in one participant, 6.1 s in 4, 6.3 s in 10, through a server; under simple discovery
+#: 10.1, 86.6 and 107 s, so there the host keeps one.
 ROBOTS_PER_PARTICIPANT = 100
 
 

@@ -101,7 +101,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "discovery server (started as one more process of the launch unless "
         "--discovery-server is given; ros2 commands then need the environment it prints, "
         "also in OUT/ros_env.sh); auto (default): a server with --discovery-server or "
-        f"--discovery-port, or from {DISCOVERY_SERVER_FROM} robots in more than one process "
+        f"--discovery-port, or from {DISCOVERY_SERVER_FROM} robots "
         "(measured: docs/performance.md)",
     )  # fmt: skip
     p.add_argument(

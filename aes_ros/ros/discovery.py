@@ -48,14 +48,14 @@ from pathlib import Path
 
 #: What ``--discovery`` may ask for.
 DISCOVERY_MODES = ("auto", "simple", "server")
-#: ``auto`` uses a discovery server from this many robots when they run in more than one
-#: process. Measured on two cores (bench/bench_ros.py, docs/performance.md, "Through a
-#: discovery server"), 1000 robots at 20 Hz: in two robot hosts every robot moved after
-#: 18-24 s through a server against 50-61 s with simple discovery, answering 15-18 Hz
-#: against 9-10 Hz; in one host (the ``auto`` layout on two cores) a server changed
-#: nothing (46-62 s either way), nor at 100 robots, 50 Hz (4 s, 49.6 against 50.0 Hz).
-#: Where a server gains nothing, simple discovery keeps ``ros2`` working without setup.
-DISCOVERY_SERVER_FROM = 1000
+#: ``auto`` uses a discovery server from this many robots. Measured on two cores
+#: (bench/bench_ros.py --discovery simple,server, docs/performance.md "Through a discovery
+#: server"), at 20 Hz in one robot host, which under a server splits its robots over DDS
+#: participants (robot_node.host.ROBOTS_PER_PARTICIPANT): every robot moved after
+#: 3.7-4.1 s through a server and 3.3-3.8 s without at 200 robots, 4.4-4.8 s against
+#: 6.4-8.5 s at 400, 9.6-10.7 s against 20-27 s at 1000, all answering 20 Hz. Below it
+#: simple discovery keeps ``ros2`` working without any setup.
+DISCOVERY_SERVER_FROM = 400
 #: The variables that make a participant a client (super client) of a discovery server.
 SERVER_VARIABLE = "ROS_DISCOVERY_SERVER"
 SUPER_CLIENT_VARIABLE = "ROS_SUPER_CLIENT"
@@ -88,17 +88,13 @@ def parse_address(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def resolved_mode(
-    mode: str, num_robots: int, server: str | None = None, robot_processes: int = 1
-) -> str:
-    """``simple`` or ``server``: what ``mode`` means for ``num_robots`` robots in
-    ``robot_processes`` processes.
+def resolved_mode(mode: str, num_robots: int, server: str | None = None) -> str:
+    """``simple`` or ``server``: what ``mode`` means for ``num_robots`` robots.
 
     ``auto`` is ``server`` when an existing server is given, or from
-    :data:`DISCOVERY_SERVER_FROM` robots in more than one process; else ``simple``."""
+    :data:`DISCOVERY_SERVER_FROM` robots; else ``simple``."""
     if mode == "auto":
-        large = robot_processes > 1 and num_robots >= DISCOVERY_SERVER_FROM
-        return "server" if server or large else "simple"
+        return "server" if server or num_robots >= DISCOVERY_SERVER_FROM else "simple"
     return mode
 
 

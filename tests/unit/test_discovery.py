@@ -42,23 +42,23 @@ def test_a_bad_address_says_what_is_expected(text: str) -> None:
         dds.parse_address(text)
 
 
-def test_auto_uses_a_server_for_large_swarms_in_several_processes_or_when_one_is_given() -> None:
+def test_auto_uses_a_server_for_large_swarms_or_when_one_is_given() -> None:
     large = dds.DISCOVERY_SERVER_FROM
-    assert dds.resolved_mode("auto", large, robot_processes=2) == "server"
-    assert dds.resolved_mode("auto", large - 1, robot_processes=2) == "simple"
-    assert dds.resolved_mode("auto", 10 * large, robot_processes=1) == "simple"  # one host
+    assert dds.resolved_mode("auto", large) == "server"
+    assert dds.resolved_mode("auto", large - 1) == "simple"
     assert dds.resolved_mode("auto", 4, "10.0.0.2:11811") == "server"
-    assert dds.resolved_mode("simple", 10 * large, robot_processes=2) == "simple"
+    assert dds.resolved_mode("simple", 10 * large) == "simple"
     assert dds.resolved_mode("server", 1) == "server"
     assert resolved_discovery(config()) == "simple"
     assert resolved_discovery(config(discovery_port=11811)) == "server"
     assert resolved_discovery(config(discovery_server="10.0.0.2:11811")) == "server"
     assert resolved_discovery(config(discovery="server")) == "server"
-    # the launch counts its robot processes: 1000 robots in two hosts, or in the one host
-    # that layout auto gives them on two cores
+    # whatever the layout: the one host of layout auto on two cores splits its robots over
+    # participants behind a server (robot_node.host), which pays as two hosts do
     thousand = scenario.load("combined", {"dt": 0.05}).with_robots(1000)
-    assert resolved_discovery(LaunchConfig(thousand, layout="per-core", cores=2)) == "server"
-    assert resolved_discovery(LaunchConfig(thousand, layout="auto", cores=2)) == "simple"
+    for layout in ("per-core", "auto", "single"):
+        assert resolved_discovery(LaunchConfig(thousand, layout=layout, cores=2)) == "server"
+    assert resolved_discovery(LaunchConfig(thousand, discovery="simple")) == "simple"
 
 
 @pytest.mark.parametrize(

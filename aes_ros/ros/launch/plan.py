@@ -86,8 +86,8 @@ class LaunchConfig:
         ``aes-swarm calibrate``); needs ``tracking="camera"``.
     discovery : ``simple`` (Fast DDS's default), ``server`` (the processes are clients
         of a discovery server; :mod:`aes_ros.ros.discovery`) or ``auto`` (a server from
-        :data:`~aes_ros.ros.discovery.DISCOVERY_SERVER_FROM` robots in more than one
-        process, or with ``discovery_server`` or ``discovery_port``). discovery_server :
+        :data:`~aes_ros.ros.discovery.DISCOVERY_SERVER_FROM` robots, or with
+        ``discovery_server`` or ``discovery_port``). discovery_server :
         ``HOST:PORT`` of an existing server to use (e.g. on another host); without it a
         server mode launch starts its own, on ``discovery_port`` (None: a free UDP port).
     """
@@ -300,9 +300,7 @@ def resolved_discovery(config: LaunchConfig) -> str:
     (:func:`aes_ros.ros.discovery.resolved_mode`; a given port means a server too)."""
     given = config.discovery_server or config.discovery_port is not None
     mode = "server" if config.discovery == "auto" and given else config.discovery
-    return dds.resolved_mode(
-        mode, config.num_robots, config.discovery_server, robot_process_count(config)
-    )
+    return dds.resolved_mode(mode, config.num_robots, config.discovery_server)
 
 
 class ProcessSpec(NamedTuple):
