@@ -105,8 +105,8 @@ parse_address(sys.argv[1])" "$SERVER" 2>/dev/null \
         || { echo "$0: -a: expected HOST:PORT, got '$SERVER'" >&2; exit 2; }
 fi
 DISCOVERY=$("$BIN/python" -c "import sys; from aes_ros.ros.discovery import resolved_mode; \
-print(resolved_mode(sys.argv[1], int(sys.argv[2]), sys.argv[3] or None, int(sys.argv[4])))" \
-    "$DISCOVERY" "$ROBOTS" "$SERVER" "$HOSTS")
+print(resolved_mode(sys.argv[1], int(sys.argv[2]), sys.argv[3] or None))" \
+    "$DISCOVERY" "$ROBOTS" "$SERVER")
 if [ -n "${ROS_DISCOVERY_SERVER:-}" ] && [ "$ROS_DISCOVERY_SERVER" != "$SERVER" ]; then
     echo "note: ROS_DISCOVERY_SERVER=$ROS_DISCOVERY_SERVER of the environment is not used" \
         "(-a $ROS_DISCOVERY_SERVER would use that server)"

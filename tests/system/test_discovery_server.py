@@ -27,18 +27,20 @@ from pathlib import Path
 
 import pytest
 import rclpy
-from geometry_msgs.msg import Twist
+from geometry_msgs.msg import PoseArray, Twist
+from helpers.messages import poses_msg
 from helpers.probe import Probe
 from helpers.ros_env import assert_no_orphans, find_process, shell_environment, wait_for
 from rclpy.parameter import Parameter
 from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import SetBool
 
+from aes_ros import scenario
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import read_bag
 from aes_ros.ros.launch.events import read_events
-from aes_ros.ros.qos import COMMAND
+from aes_ros.ros.qos import COMMAND, SENSOR
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent
@@ -248,3 +250,56 @@ def test_start_swarm_script_runs_through_a_server_it_starts(spawn, ros_env, tmp_
     os.killpg(script.pid, signal.SIGINT)
     assert script.wait(30) == 0
     assert_no_orphans(ros_env)
+
+
+def test_a_host_behind_a_server_serves_every_robot_from_its_participants(
+    spawn, ros_env, tmp_path
+) -> None:
+    """A robot host that is a client of a server makes its robots in several DDS
+    participants (here one robot each): through the server every robot is in the node
+    list, answers parameter get and set (a bad value rejected with its reason) and
+    commands its robot from the poses; Ctrl-C stops the host cleanly."""
+    n = 4
+    port = dds.free_udp_port()
+    server = spawn.start(*dds.server_argv(port, "127.0.0.1"), name=dds.SERVER_PROCESS)
+    assert wait_for(lambda: dds.SERVER_READY in spawn.log(server).read_text(), 30.0)
+    found = dds.Discovery("server", f"127.0.0.1:{port}")
+    spawn.env = found.client_environment(spawn.env)
+    host = spawn.start(
+        "aes-robot-host", "--ros-args", "-p", "scenario:=linear", "-p", f"num_robots:={n}",
+        "-p", "robots_per_participant:=1", name="host",
+    )  # fmt: skip
+    (tmp_path / "ros_env.sh").write_text(found.script(ros_env))
+    with shell_environment(tmp_path / "ros_env.sh"):
+        probe = Probe(keep_clients=True)
+        try:
+            robots = [f"/mona_{i}/{names.ROBOT_NODE}" for i in range(n)]
+            probe.wait(
+                lambda: set(robots) <= {f"{ns}/{name}" for name, ns in
+                                        probe.node.get_node_names_and_namespaces()},
+                30.0, "every robot in the node list",
+            )  # fmt: skip
+            assert f"{n} DDS participant(s)" in spawn.log(host).read_text()
+            for i, robot in enumerate(robots):
+                (result,) = probe.set_parameters(robot, [Parameter("alpha", value=0.01 * (i + 1))])
+                assert result.successful, result.reason
+                (result,) = probe.set_parameters(robot, [Parameter("alpha", value=-1.0)])
+                assert not result.successful and "alpha" in result.reason
+                assert probe.get_parameters(robot, ["alpha"]) == [pytest.approx(0.01 * (i + 1))]
+            cmds = [
+                probe.record(Twist, names.robot_topic(i, names.CMD_VEL), COMMAND) for i in range(n)
+            ]
+            scen = scenario.load("linear").with_robots(n)
+            xy, yaw = scen.initial_state(seed=1)
+            poses = probe.publisher(PoseArray, names.POSES, SENSOR)
+            clock = [1.0]
+
+            def send() -> None:
+                clock[0] += 0.05
+                poses.publish(poses_msg(xy, yaw, clock[0]))
+
+            probe.until(send, lambda: all(cmds))
+        finally:
+            probe.close()
+    assert spawn.stop(host) == 0
+    assert "Traceback" not in spawn.log(host).read_text()
