@@ -34,7 +34,8 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
 
 Before it starts anything it checks (:mod:`aes_ros.ros.launch.preflight`) that the
 outputs can be written and have room, and that no other swarm is active in this
-ROS domain. SIGINT or SIGTERM to the launcher ends the run early the same way
+ROS domain (not with a discovery server of its own, whose only clients are its
+processes). SIGINT or SIGTERM to the launcher ends the run early the same way
 (processes stopped, bag closed, outputs written from what was sampled). If the
 launcher itself is killed, its children get SIGTERM from the kernel, a reaper
 process (:mod:`aes_ros.ros.launch.reaper`) removes Fast DDS's shared memory, and
@@ -191,7 +192,10 @@ class Launcher:
         self.monitor = Monitor(
             n, cfg.poses_topic, wall_clock=not cfg.sim_time, discovery=self.discovery
         )
-        preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        if not self.discovery.starts_server:
+            # (a server of its own, on a port just taken, has no other clients to find:
+            # the wait, DISCOVERY_WAIT s of every start, would be for nothing)
+            preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
         if order.recorder is not None:
             self.recorder = self.procs.start(*order.recorder)
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
