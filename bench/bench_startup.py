@@ -130,6 +130,15 @@ def child_environment(profile: str) -> dict[str, str]:
     return fastdds_environment(env) if profile == "launch" else env
 
 
+def _start_server(env: dict[str, str], started: list[subprocess.Popen]) -> dict[str, str]:
+    """Start a discovery server on a free port (appended to ``started``); ``env`` for its
+    clients."""
+    port = dds.free_udp_port()
+    argv = dds.server_argv(port, "127.0.0.1")
+    started.append(subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL))
+    return dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
+
+
 def _run_children(
     env: dict[str, str],
     domains: list[int],
@@ -145,10 +154,7 @@ def _run_children(
     start = time.perf_counter()
     started: list[subprocess.Popen] = []
     if server:
-        port = dds.free_udp_port()
-        argv = dds.server_argv(port, "127.0.0.1")
-        started.append(subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL))
-        env = dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
+        env = _start_server(env, started)
     children = [
         subprocess.Popen(
             [*cmd, str(first), str(count), str(int(services))],
@@ -199,10 +205,7 @@ def participants_beside_reader(
     participants; ``inf`` after ``limit`` s."""
     procs: list[subprocess.Popen] = []
     if server:
-        port = dds.free_udp_port()
-        argv = dds.server_argv(port, "127.0.0.1")
-        procs.append(subprocess.Popen(argv, env=env, stdout=subprocess.DEVNULL))
-        env = dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
+        env = _start_server(env, procs)
     env = dict(env, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", ROS_DOMAIN_ID=str(FIRST_DOMAIN))
     pipes = {"stdin": subprocess.PIPE, "stdout": subprocess.PIPE, "text": True}
     maker = [sys.executable, __file__, "--child", "0", str(robots), "1", str(participants)]
