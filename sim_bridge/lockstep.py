@@ -4,9 +4,11 @@ Members are the robots (their ``cmd_vel``) and, when a recording must be
 lossless, the recorder (its progress). A member silent for longer than
 ``timeout`` wall seconds while the barrier waits for it leaves the barrier, so
 that one dead robot does not stall the swarm; it is back in as soon as it answers
-again. A member never heard from is waited for without a timeout (it may still
-be starting). With no fault every step waits for everyone: a run stays
-deterministic.
+again. Silent means: no answer since the later of its last answer and the start
+of the step awaited (a member that answered at once, then waited with everyone for
+a dead one, has had no time to answer the step after it). A member never heard
+from is waited for without a timeout (it may still be starting). With no fault
+every step waits for everyone: a run stays deterministic.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ class LockstepBarrier:
         self._fresh = np.zeros(n, dtype=bool)
         self._member = np.ones(n, dtype=bool)
         self._heard = np.full(n, -math.inf)  # wall time [s] of each member's last answer
+        self._step_since = -math.inf  # wall time [s] the step awaited began
 
     def arrived(self, member: int, now: float) -> bool:
         """``member`` answered at wall time ``now``; True if it was out and is back in."""
@@ -56,7 +59,8 @@ class LockstepBarrier:
 
     def drop_silent(self, now: float) -> np.ndarray:
         """Remove the members awaited but silent for longer than the timeout; their ids."""
-        silent = ~self._fresh & self._member & (now - self._heard > self.timeout)
+        quiet_since = np.maximum(self._heard, self._step_since)
+        silent = ~self._fresh & self._member & (now - quiet_since > self.timeout)
         silent &= np.isfinite(self._heard)  # never heard from: still starting
         self._member[silent] = False
         return np.flatnonzero(silent)
@@ -69,6 +73,7 @@ class LockstepBarrier:
     def is_member(self, member: int) -> bool:
         return bool(self._member[member])
 
-    def next_step(self) -> None:
-        """The world stepped (or was reset): wait for every member again."""
+    def next_step(self, now: float) -> None:
+        """The world stepped (or was reset) at wall time ``now``: wait for every member again."""
         self._fresh[:] = False
+        self._step_since = now

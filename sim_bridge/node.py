@@ -315,7 +315,7 @@ class SimBridgeNode(Node):
                 self.step_timer.cancel()
                 self.waiting = True
             return
-        self.barrier.next_step()
+        self.barrier.next_step(time.monotonic())
         self.world.step()
         self.publish_state()
 
@@ -367,7 +367,7 @@ class SimBridgeNode(Node):
     def on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """Back to the initial state; every robot stopped; the clock keeps running."""
         self.world.reset()
-        self.barrier.next_step()
+        self.barrier.next_step(time.monotonic())
         self.publish_state()
         response.success = True
         response.message = f"reset {self.n} robots to the initial state at t={self.world.time:g} s"

@@ -18,7 +18,7 @@ def test_barrier_opens_only_when_every_robot_answered() -> None:
     assert not barrier.complete and barrier.missing().tolist() == [1]
     barrier.arrived(1, now=0.2)
     assert barrier.complete
-    barrier.next_step()
+    barrier.next_step(now=0.2)
     assert not barrier.complete and barrier.missing().tolist() == [0, 1, 2]
 
 
@@ -26,19 +26,37 @@ def test_a_silent_member_leaves_the_barrier_and_rejoins_when_it_answers() -> Non
     barrier = LockstepBarrier(3, timeout=2.0)
     for member in range(3):
         barrier.arrived(member, now=0.0)
-    barrier.next_step()
+    barrier.next_step(now=0.0)
     barrier.arrived(0, now=0.5)
     barrier.arrived(2, now=0.5)
     assert barrier.drop_silent(now=1.9).tolist() == []  # not yet 2 s
     assert barrier.drop_silent(now=2.1).tolist() == [1]  # robot 1: last heard at 0.0
     assert barrier.complete and not barrier.is_member(1)
-    barrier.next_step()
+    barrier.next_step(now=2.1)
     barrier.arrived(0, now=2.2)
     barrier.arrived(2, now=2.2)
     assert barrier.complete  # the step goes on without robot 1
-    barrier.next_step()
+    barrier.next_step(now=2.2)
     assert barrier.arrived(1, now=3.0)  # it speaks again: back in at once
     assert barrier.is_member(1) and barrier.missing().tolist() == [0, 2]
+
+
+def test_a_member_that_waited_with_the_others_is_not_taken_for_silent() -> None:
+    """Robots 0 and 1 answer at once; the step waits 2 s for robot 2, which leaves;
+    the next step begins, and robot 0, last heard 2 s ago, has had no time to answer it:
+    it stays in (it left the barrier too, and was stopped, when its silence counted
+    from its last answer: a lockstep flake seen in CI)."""
+    barrier = LockstepBarrier(3, timeout=2.0)
+    for member in range(3):
+        barrier.arrived(member, now=0.0)
+    barrier.next_step(now=0.0)
+    barrier.arrived(0, now=0.01)
+    barrier.arrived(1, now=0.01)
+    assert barrier.drop_silent(now=2.05).tolist() == [2]
+    barrier.next_step(now=2.05)
+    assert barrier.drop_silent(now=2.06).tolist() == []  # 0 and 1: 10 ms into the step
+    barrier.arrived(0, now=2.07)
+    assert barrier.drop_silent(now=4.1).tolist() == [1]  # silent 2 s into the step: out
 
 
 def test_a_member_never_heard_from_is_waited_for() -> None:
