@@ -24,6 +24,12 @@ from pathlib import Path
 from aes_ros.ros.launch.processes import ros_domain
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
+#: Seconds the reaper waits for live peers (a ``ros2 topic echo``, a test's probe) to let
+#: go of the dead processes' ports before it removes them. Nobody waits for the reaper,
+#: so it waits longer than a launch's own stop (2 s): on a loaded machine a peer held a
+#: port for more than 2 s, and the file was left behind once it let go (seen in CI).
+SETTLE = 10.0
+
 
 def alive(pid: int) -> bool:
     """True if ``pid`` runs and is not a zombie."""
@@ -69,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
         if alive(pid):
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(pid, signal.SIGKILL)
-    clean_shared_memory(ros_domain(dict(os.environ)))
+    clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE)
     return 0
 
 
