@@ -22,11 +22,18 @@ def test_barrier_opens_only_when_every_robot_answered() -> None:
     assert not barrier.complete and barrier.missing().tolist() == [0, 1, 2]
 
 
-def test_a_silent_member_leaves_the_barrier_and_rejoins_when_it_answers() -> None:
+def second_step() -> LockstepBarrier:
+    """A barrier of 3 members (timeout 2 s) that all answered the first step at 0 s,
+    waiting for the second, which began at 0 s."""
     barrier = LockstepBarrier(3, timeout=2.0)
     for member in range(3):
         barrier.arrived(member, now=0.0)
     barrier.next_step(now=0.0)
+    return barrier
+
+
+def test_a_silent_member_leaves_the_barrier_and_rejoins_when_it_answers() -> None:
+    barrier = second_step()
     barrier.arrived(0, now=0.5)
     barrier.arrived(2, now=0.5)
     assert barrier.drop_silent(now=1.9).tolist() == []  # not yet 2 s
@@ -46,10 +53,7 @@ def test_a_member_that_waited_with_the_others_is_not_taken_for_silent() -> None:
     the next step begins, and robot 0, last heard 2 s ago, has had no time to answer it:
     it stays in (it left the barrier too, and was stopped, when its silence counted
     from its last answer: a lockstep flake seen in CI)."""
-    barrier = LockstepBarrier(3, timeout=2.0)
-    for member in range(3):
-        barrier.arrived(member, now=0.0)
-    barrier.next_step(now=0.0)
+    barrier = second_step()
     barrier.arrived(0, now=0.01)
     barrier.arrived(1, now=0.01)
     assert barrier.drop_silent(now=2.05).tolist() == [2]
