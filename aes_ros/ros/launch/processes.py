@@ -31,16 +31,19 @@ class Child:
     log: Path
     start: int = 0
 
-    def tail(self, chars: int = 2000) -> str:
-        """The last ``chars`` characters of this process's output ("" if unreadable):
-        never an earlier process's, whose ready line would end a wait at once."""
+    def output(self) -> str:
+        """What this process has written to its log ("" if unreadable): never an earlier
+        process's, whose ready line would end a wait at once."""
         try:
             with open(self.log, "rb") as fh:
                 fh.seek(self.start)
-                text = fh.read().decode(errors="replace")
+                return fh.read().decode(errors="replace")
         except OSError:
             return ""
-        return text[-chars:]
+
+    def tail(self, chars: int = 2000) -> str:
+        """The last ``chars`` characters of this process's output."""
+        return self.output()[-chars:]
 
     def last_line(self) -> str:
         """The last line of the log ("" if there is none)."""

@@ -54,7 +54,6 @@ def ready_signal(name: str) -> str:
 class _Recovering:
     child: Child
     died_at: float
-    log_offset: int
 
 
 @dataclass
@@ -106,7 +105,7 @@ class Supervision:
         for name, rec in list(self._recovering.items()):
             if rec.child.proc.poll() is not None:
                 del self._recovering[name]  # died again: handled as a death
-            elif ready_signal(name) in _log_since(rec.child, rec.log_offset):
+            elif ready_signal(name) in rec.child.output():
                 del self._recovering[name]
                 took = now - rec.died_at
                 self.recovery_times.setdefault(name, []).append(took)
@@ -156,21 +155,9 @@ class Supervision:
                 self._due[name] = (now + delay, now)
 
     def _restart(self, name: str, died_at: float, now: float) -> None:
-        argv = self.command_for(name)
-        log = self.procs.log_dir / f"{name}.log"
-        offset = log.stat().st_size if log.exists() else 0
-        child = self.procs.start(name, argv)
+        child = self.procs.start(name, self.command_for(name))
         self._policies[name].restarted(now)
-        self._recovering[name] = _Recovering(child, died_at, offset)
+        self._recovering[name] = _Recovering(child, died_at)
         self.events.record(
             name, "restarted", action=f"pid {child.proc.pid}", sim_time=self.sim_time()
         )
-
-
-def _log_since(child: Child, offset: int) -> str:
-    try:
-        with open(child.log, errors="replace") as fh:
-            fh.seek(offset)
-            return fh.read()
-    except OSError:
-        return ""
