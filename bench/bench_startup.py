@@ -139,6 +139,17 @@ def _start_server(env: dict[str, str], started: list[subprocess.Popen]) -> dict[
     return dds.Discovery("server", f"127.0.0.1:{port}").client_environment(env)
 
 
+def _kill_all(procs: list[subprocess.Popen], domains: set[int]) -> None:
+    """Kill ``procs`` all at once, then remove what they left in the shared memory of
+    ``domains``."""
+    for proc in procs:
+        proc.kill()
+    for proc in procs:
+        proc.wait()
+    for domain in domains:
+        clean_shared_memory(domain)
+
+
 def _run_children(
     env: dict[str, str],
     domains: list[int],
@@ -169,12 +180,7 @@ def _run_children(
         lines = [proc.stdout.readline() for proc in children]
         wall = time.perf_counter() - start
     finally:
-        for proc in started:
-            proc.kill()
-        for proc in started:
-            proc.wait()
-        for domain in set(domains):
-            clean_shared_memory(domain)
+        _kill_all(started, set(domains))
     if not all(line.startswith("created") for line in lines):
         raise RuntimeError(f"a child failed: {lines!r}")
     return [float(line.split()[1]) for line in lines], wall
@@ -225,11 +231,7 @@ def participants_beside_reader(
         timer.cancel()
         return time.perf_counter() - start if matched else math.inf
     finally:
-        for proc in procs:
-            proc.kill()
-        for proc in procs:
-            proc.wait()
-        clean_shared_memory(FIRST_DOMAIN)
+        _kill_all(procs, {FIRST_DOMAIN})
 
 
 def one_process(env: dict[str, str], robots: int, services: bool) -> float:
