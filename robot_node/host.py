@@ -126,7 +126,9 @@ class RobotHostNode(Node):
             Parameter("use_sim_time", Parameter.Type.BOOL, False),
         ]
         sim_time = bool(self.get_parameter("use_sim_time").value)
-        contexts = self._participants(len(ids), per_participant, args)
+        # the contexts beyond this node's are its own to shut down, after the robots
+        self._own_contexts = self._more_participants(len(ids), per_participant, args)
+        contexts = [self.context, *self._own_contexts]
         self.robots: list[RobotNode] = []
         for k, i in enumerate(ids):
             keep = table[i] >= 0
@@ -155,21 +157,18 @@ class RobotHostNode(Node):
             f"neighbour source {source}, {len(contexts)} DDS participant(s)"
         )
 
-    def _participants(
+    def _more_participants(
         self, robots: int, per_participant: int, args: Sequence[str] | None
     ) -> list[Context]:
-        """The contexts the robots are made in: this node's, then as many more as
-        ``per_participant`` asks (0: :data:`ROBOTS_PER_PARTICIPANT` under a discovery
-        server, else none)."""
+        """The contexts the robots need beyond this node's: as many as ``per_participant``
+        asks (0: :data:`ROBOTS_PER_PARTICIPANT` under a discovery server, else none)."""
         if per_participant == 0:
             server = os.environ.get(dds.SERVER_VARIABLE)
             per_participant = ROBOTS_PER_PARTICIPANT if server else max(robots, 1)
-        self._own_contexts: list[Context] = []
-        for _ in range(math.ceil(robots / per_participant) - 1):
-            context = Context()
+        contexts = [Context() for _ in range(math.ceil(robots / per_participant) - 1)]
+        for context in contexts:
             rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
-            self._own_contexts.append(context)
-        return [self.context, *self._own_contexts]
+        return contexts
 
     def _share_clock(self, robot: RobotNode) -> None:
         """Put the robot on sim time: its clock is this node's, driven by this node's ``/clock``.
