@@ -136,8 +136,9 @@ def abandoned_shm(before: set[str], domain: int | None = None) -> set[str]:
     """Fast DDS shared-memory files (of ``domain``) made since ``before`` that no live
     process maps: what processes that are gone left behind (a file the test's own probe
     still maps, as a peer of a dead process, is not abandoned yet)."""
+    made = shm_files(domain) - before  # before the mappings, as the clean does
     mapped = {Path(path).name for path in mapped_files()}
-    return {name for name in shm_files(domain) - before if name not in mapped}
+    return {name for name in made if name not in mapped}
 
 
 def _domain_processes(domain: str) -> list[tuple[int, str]]:

@@ -14,6 +14,13 @@ listener is gone (no lock held on its lock file) and that no live process maps. 
 that outlives them (a ``ros2 topic echo``, a test's probe) lets go of a port about
 0.3 s after its listener said goodbye, so the clean waits up to ``settle`` seconds for
 such ports. Ports of live listeners are never touched, whatever domain they serve.
+
+A participant starting beside a clean makes its port files one by one, and maps and
+locks them a moment after: the clean lists the files before it looks at the locks and
+mappings (a file made during its look at ``/proc`` is not taken for abandoned), and it
+leaves files younger than :data:`YOUNG` seconds alone for this pass. Ports below 7400
+belong to participants of every domain, so a clean of one domain runs beside the
+starts of the others.
 """
 
 from __future__ import annotations
@@ -31,6 +38,9 @@ from aes_ros.ros.launch.plan import LaunchError, executable
 SHM_DIR = Path("/dev/shm")
 _PORT_FILE = re.compile(r"(?:sem\.)?fastrtps_port(\d+)(?:_el|_sl|_mutex)?")
 _LOCK_SUFFIXES = ("_el", "_sl")
+#: Seconds a port file is left alone after it was made: its maker may not have mapped
+#: or locked it yet (a loaded machine preempts a starting participant for that long).
+YOUNG = 1.0
 
 
 def domain_port_files(domain: int) -> dict[int, list[Path]]:
@@ -83,14 +93,27 @@ def _has_listener(files: list[Path], locked: set[int]) -> bool:
     return False
 
 
+def _made_since(path: Path, when: float) -> bool:
+    try:
+        return path.stat().st_ctime > when
+    except OSError:  # gone already
+        return False
+
+
 def abandoned_ports(domain: int) -> tuple[list[Path], list[int]]:
     """Ports of ``domain`` whose listener is gone: their files that no live process maps
-    (to remove), and the ports of which a live peer still maps a file (to wait for)."""
+    (to remove), and the ports of which a live peer still maps a file, or whose files
+    are younger than :data:`YOUNG` s (to wait for)."""
+    ports = domain_port_files(domain)  # before the locks and mappings: see the module doc
+    young_since = time.time() - YOUNG
     locked, mapped = locked_inodes(), mapped_files()
     removable: list[Path] = []
     held: list[int] = []
-    for port, files in sorted(domain_port_files(domain).items()):
+    for port, files in sorted(ports.items()):
         if _has_listener(files, locked):
+            continue
+        if any(_made_since(path, young_since) for path in files):
+            held.append(port)
             continue
         free = [path for path in files if str(path) not in mapped]
         removable += free
