@@ -20,12 +20,10 @@ PARTICIPANTS = 8
 #: Passes of the clean of another domain, as fast as they go, until killed.
 CLEANER = """
 import sys
-from aes_ros.ros.launch.shared_memory import abandoned_ports
+from aes_ros.ros.launch.shared_memory import remove_abandoned_ports
 print("cleaning", flush=True)
 while True:
-    removable, _ = abandoned_ports(int(sys.argv[1]))
-    for path in removable:
-        path.unlink(missing_ok=True)
+    remove_abandoned_ports(int(sys.argv[1]))
 """
 
 #: Starts participants, then reports the shared-memory files they map, and which of

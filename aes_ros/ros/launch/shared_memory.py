@@ -131,6 +131,16 @@ def _fastdds_tool() -> str | None:
         return None
 
 
+def remove_abandoned_ports(domain: int) -> list[int]:
+    """One pass of a clean: remove the files of ``domain``'s abandoned ports
+    (:func:`abandoned_ports`); the ports still to wait for."""
+    removable, held = abandoned_ports(domain)
+    for path in removable:
+        with contextlib.suppress(OSError):
+            path.unlink()
+    return held
+
+
 def clean_shared_memory(domain: int | None = None, settle: float = 2.0) -> None:
     """Remove Fast DDS shared-memory files whose processes are gone: ``fastdds shm
     clean`` (segments), and with ``domain`` the files of that ROS domain's abandoned
@@ -143,10 +153,7 @@ def clean_shared_memory(domain: int | None = None, settle: float = 2.0) -> None:
         return
     deadline = time.monotonic() + settle
     while True:
-        removable, held = abandoned_ports(domain)
-        for path in removable:
-            with contextlib.suppress(OSError):
-                path.unlink()
+        held = remove_abandoned_ports(domain)
         if not held or time.monotonic() >= deadline:
             return
         time.sleep(0.1)
