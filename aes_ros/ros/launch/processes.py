@@ -46,12 +46,13 @@ class Child:
         return self.output()[-chars:]
 
     def last_line(self) -> str:
-        """The last line of the log ("" if there is none)."""
+        """The last line of this process's output ("" if there is none)."""
         lines = self.tail(300).strip().splitlines()
         return lines[-1] if lines else ""
 
     def line_after(self, text: str) -> str | None:
-        """What follows ``text`` on the first line of the log that holds it (stripped)."""
+        """What follows ``text`` on the first line of this process's output that holds it
+        (stripped)."""
         for line in self.tail(100_000).splitlines():
             if text in line:
                 return line.split(text, 1)[1].strip()
