@@ -1,6 +1,10 @@
-"""The launcher's pose monitor holds a window of samples, not the whole run."""
+"""The launcher's pose monitor: it holds a window of samples, not the whole run, and
+names another swarm's nodes."""
 
 from __future__ import annotations
+
+import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -58,3 +62,31 @@ def test_samples_all_moving_has_not_looked_at_stay(monitor) -> None:
     assert monitor.offset == 5
     monitor.on_poses(poses(0.30, still + 1.0))
     assert monitor.all_moving() == 6
+
+
+class LateNamesGraph:
+    """A graph where a publisher of the poses shows at once and its node's name only
+    after ``delay`` s, as discovery tells them on a loaded machine."""
+
+    def __init__(self, delay: float) -> None:
+        self.named_at = time.monotonic() + delay
+
+    def get_node_names_and_namespaces(self) -> list[tuple[str, str]]:
+        return []
+
+    def count_publishers(self, topic: str) -> int:
+        return 1
+
+    def get_publishers_info_by_topic(self, topic: str) -> list[SimpleNamespace]:
+        name = "sim_bridge" if time.monotonic() >= self.named_at else "_NODE_NAME_UNKNOWN_"
+        return [SimpleNamespace(node_name=name, node_namespace="/")]
+
+
+def test_another_swarms_publisher_is_named_once_discovery_tells_its_node(
+    monitor, monkeypatch
+) -> None:
+    monkeypatch.setattr(monitor, "node", LateNamesGraph(delay=2.0))
+    monkeypatch.setattr(monitor, "spin_once", time.sleep)
+    assert monitor.other_swarm(wait=1.0) == ["/sim_bridge"]
+    monkeypatch.setattr(monitor, "node", LateNamesGraph(delay=60.0))
+    assert monitor.other_swarm(wait=1.0) == ["a publisher of /swarm/poses"]

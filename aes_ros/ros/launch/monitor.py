@@ -47,6 +47,10 @@ DISCOVERY_WAIT = 1.0
 #: swarm: a participant without this launch's Fast DDS profile announces itself only
 #: every 3 s, and its answer to a newcomer can go astray.
 OTHER_SWARM_WINDOW = 6.0
+#: Wall seconds more to learn the node name of another swarm's poses publisher, once
+#: discovery showed the publisher: the name comes in the node's graph update, which can
+#: come seconds after the endpoint on a loaded machine. Spent only when refusing.
+NAME_WAIT = 5.0
 #: What a waiting loop calls after every spin (each raises to end the wait).
 Checks = Sequence[Callable[[], None]]
 
@@ -158,7 +162,8 @@ class Monitor:
     def other_swarm(self, wait: float) -> list[str]:
         """The nodes of another swarm in this ROS domain (empty if none was seen
         within ``wait`` s of discovery): a bridge, a supervisor, robots or a publisher
-        of ``/swarm/poses``."""
+        of ``/swarm/poses``, named once discovery tells its node (up to ``NAME_WAIT``
+        s more)."""
         ours = {names.SIM_BRIDGE_NODE, names.SUPERVISOR_NODE, names.ROBOT_NODE, names.RECORDER_NODE}
         deadline = time.monotonic() + wait
         publishing = False
@@ -172,7 +177,9 @@ class Monitor:
             found += _publishers(self.node, names.POSES)
             if found:
                 return sorted(set(found))
-            publishing = publishing or self.node.count_publishers(names.POSES) > 0
+            if not publishing and self.node.count_publishers(names.POSES) > 0:
+                publishing = True  # refused whatever comes next: wait for its name
+                deadline = max(deadline, time.monotonic() + NAME_WAIT)
         return [f"a publisher of {names.POSES}"] if publishing else []
 
     def second_swarm(self) -> list[str]:
