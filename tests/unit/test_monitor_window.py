@@ -11,6 +11,7 @@ import pytest
 from geometry_msgs.msg import Pose, PoseArray
 from rclpy.serialization import serialize_message
 
+from aes_ros.ros.launch import monitor as monitor_module
 from aes_ros.ros.launch.monitor import Monitor
 
 N = 4
@@ -88,5 +89,6 @@ def test_another_swarms_publisher_is_named_once_discovery_tells_its_node(
     monkeypatch.setattr(monitor, "node", LateNamesGraph(delay=2.0))
     monkeypatch.setattr(monitor, "spin_once", time.sleep)
     assert monitor.other_swarm(wait=1.0) == ["/sim_bridge"]
+    monkeypatch.setattr(monitor_module, "NAME_WAIT", 1.0)  # no need to sit out all 5 s
     monkeypatch.setattr(monitor, "node", LateNamesGraph(delay=60.0))
     assert monitor.other_swarm(wait=1.0) == ["a publisher of /swarm/poses"]
