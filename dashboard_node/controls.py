@@ -73,8 +73,9 @@ _FIELDS = {
 
 def parse_control(text: str | bytes) -> Control:
     """The control a viewer's message asks for; ControlError with the reason otherwise."""
-    if len(text) > MAX_MESSAGE_BYTES:
-        raise ControlError(f"message of {len(text)} bytes; at most {MAX_MESSAGE_BYTES}")
+    size = len(text.encode("utf-8", "surrogatepass") if isinstance(text, str) else text)
+    if size > MAX_MESSAGE_BYTES:
+        raise ControlError(f"message of {size} bytes; at most {MAX_MESSAGE_BYTES}")
     try:
         message = json.loads(text, parse_constant=_no_constant)
     except (ValueError, RecursionError) as exc:
@@ -82,8 +83,8 @@ def parse_control(text: str | bytes) -> Control:
     if not isinstance(message, dict):
         raise ControlError("not a JSON object")
     kind = message.get("type")
-    if kind not in _FIELDS:
-        raise ControlError(f"type: {kind!r} is not one of {', '.join(_FIELDS)}")
+    if not isinstance(kind, str) or kind not in _FIELDS:
+        raise ControlError(f"type: {_show(kind)} is not one of {', '.join(_FIELDS)}")
     extra = set(message) - _FIELDS[kind] - {"type"}
     missing = _FIELDS[kind] - set(message)
     if kind == "drive" and missing != _FIELDS[kind]:
@@ -103,12 +104,12 @@ def parse_control(text: str | bytes) -> Control:
         return Enable(message["enabled"])
     if kind == "gain":
         name = message["name"]
-        if name not in GAIN_NAMES:
-            raise ControlError(f"name: {name!r} is not one of {', '.join(GAIN_NAMES)}")
+        if not isinstance(name, str) or name not in GAIN_NAMES:
+            raise ControlError(f"name: {_show(name)} is not one of {', '.join(GAIN_NAMES)}")
         return SetGain(name, _number(name, message["value"]))
     action = message["action"]
-    if action not in SIM_ACTIONS:
-        raise ControlError(f"action: {action!r} is not one of {', '.join(SIM_ACTIONS)}")
+    if not isinstance(action, str) or action not in SIM_ACTIONS:
+        raise ControlError(f"action: {_show(action)} is not one of {', '.join(SIM_ACTIONS)}")
     return SimAction(action)
 
 
@@ -133,10 +134,20 @@ def _no_constant(name: str) -> Any:
 
 def _number(field: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ControlError(f"{field}: {value!r} is not a number")
-    if not math.isfinite(value):
-        raise ControlError(f"{field}: {value!r} is not finite")
-    return float(value)
+        raise ControlError(f"{field}: {_show(value)} is not a number")
+    try:
+        number = float(value)  # an integer of 400 digits does not fit a float
+    except OverflowError:
+        raise ControlError(f"{field}: {_show(value)} is too large") from None
+    if not math.isfinite(number):
+        raise ControlError(f"{field}: {_show(value)} is not finite")
+    return number
+
+
+def _show(value: Any, limit: int = 40) -> str:
+    """``repr(value)``, cut to ``limit`` characters: a reason is read, not a copy."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _in_range(name: str, value: Any) -> None:
