@@ -38,6 +38,7 @@ PARAM_ORDER = (
     "dir_x", "dir_y", "omega", "center_x", "center_y", "use_centroid", "noise",
     "clip", "max_linear_speed", "max_angular_speed",
     "perception_sigma", "perception_miss", "perception_delay_steps", "perception_period_steps",
+    "noise_dt",
 )  # fmt: skip
 
 
@@ -275,8 +276,9 @@ def advance(
         sigma_p, miss_p = pb[19], pb[20]
         ring_len = int(pb[21]) + 1
         period = int(pb[22])
-        amp_r = d_r / math.sqrt(dt)
-        amp_t = d_theta / math.sqrt(dt)
+        root_dt = math.sqrt(pb[23])  # Δt of the noise term, floored (model.noise_dt)
+        amp_r = d_r / root_dt
+        amp_t = d_theta / root_dt
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):

@@ -42,6 +42,18 @@ class Gains:
 #: The fields of :class:`Gains`: every gain and noise strength a robot node declares.
 GAIN_FIELDS: tuple[str, ...] = tuple(f.name for f in fields(Gains))
 
+#: Smallest Δt [s] the noise term is scaled with (docs/model.md, Noise). A robot
+#: node's Δt is the gap between two pose stamps, which may be 1 ns; D/√Δt would then
+#: be 7000 times its size at 20 Hz.
+MIN_NOISE_DT = 1e-3
+
+
+def noise_dt(dt: float | np.ndarray) -> float | np.ndarray:
+    """Δt for the noise term: ``dt``, or :data:`MIN_NOISE_DT` where it is smaller or NaN."""
+    if isinstance(dt, float):
+        return dt if dt >= MIN_NOISE_DT else MIN_NOISE_DT
+    return np.fmax(dt, MIN_NOISE_DT)
+
 
 @dataclass(frozen=True)
 class SwarmCommand:
@@ -188,14 +200,16 @@ def motion_commands(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Forward speed and turn rate from the force (E5, E6).
 
-    g = f + (D_r/√Δt) ξ̂_r;  u = v_0 + α g·n̂;  ω = β g·n̂⊥ + (D_θ/√Δt) ξ_θ.
+    g = f + (D_r/√Δt) ξ̂_r;  u = v_0 + α g·n̂;  ω = β g·n̂⊥ + (D_θ/√Δt) ξ_θ,
+    with Δt no smaller than :data:`MIN_NOISE_DT` (:func:`noise_dt`), so no Δt
+    makes the noise larger than D/√(1 ms).
 
     Parameters
     ----------
     forces : (..., N, 2) noise-free force f (E4), world frame.
     headings : (..., N) θ [rad].
     gains : α, β, v_0, D_r, D_θ.
-    dt : Δt [s]; scales the noise.
+    dt : Δt [s]; scales the noise (floored at :data:`MIN_NOISE_DT`).
     noise : (xi_x, xi_y, xi_theta) from :func:`draw_noise`, or None for no noise.
 
     Returns
@@ -206,10 +220,11 @@ def motion_commands(
     turn_noise = 0.0
     if noise is not None:
         xi_x, xi_y, xi_theta = noise
-        amp = gains.d_r / np.sqrt(dt)
+        root_dt = np.sqrt(noise_dt(dt))
+        amp = gains.d_r / root_dt
         gx = gx + amp * xi_x
         gy = gy + amp * xi_y
-        turn_noise = gains.d_theta / np.sqrt(dt) * xi_theta
+        turn_noise = gains.d_theta / root_dt * xi_theta
     c, s = np.cos(headings), np.sin(headings)
     u = gains.v0 + gains.alpha * (gx * c + gy * s)
     turn_rate = gains.beta * (-gx * s + gy * c) + turn_noise
@@ -300,7 +315,8 @@ def robot_command(
     rest_lengths : (K,) their rest lengths l_ij [m].
     gains, command : model gains and the supervisor's command; ``command.center``
         must be set (the supervisor publishes the live centroid).
-    dt : control period Δt [s] (scales the noise).
+    dt : control period Δt [s] (scales the noise; below :data:`MIN_NOISE_DT`
+        it counts as :data:`MIN_NOISE_DT`).
     rng : noise source; None switches noise off.
     limits : (max_linear_speed, max_angular_speed) to clip to, or None.
     """

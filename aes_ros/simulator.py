@@ -35,6 +35,7 @@ from aes_ros.model import (
     clip_commands,
     draw_noise,
     motion_commands,
+    noise_dt,
     total_forces,
     unicycle_step,
 )
@@ -409,6 +410,7 @@ class _NumbaStepper:
             "perception_miss": scenario.perception_miss,
             "perception_delay_steps": delay_steps(scenario.perception_delay, scenario.dt),
             "perception_period_steps": camera_period_steps(scenario.perception_rate, scenario.dt),
+            "noise_dt": noise_dt(scenario.dt),
         }
         rows = ({**shared, **asdict(g)} for g in run_gains)  # asdict deep-copies: once a run
         self.params = np.array([[row[name] for name in PARAM_ORDER] for row in rows], dtype=float)
