@@ -12,7 +12,9 @@ The ``alone`` tests go to one worker, one after the other (the conftest gives th
 it over between them would cost a wait for the other worker's test every time.
 
 Without pytest-xdist's workers (a plain ``pytest``) the tests run one after the other
-and nothing is locked.
+and nothing is locked. The locks live in a directory of the temporary directory that
+only this user may use (:func:`private_dir`): a name planted there by someone else is
+refused, never followed.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -37,8 +40,21 @@ def lock_dir() -> Path | None:
     run = os.environ.get(RUN_VARIABLE)
     if not run:
         return None
-    path = Path(tempfile.gettempdir()) / f"aes_swarm_tests_{run}"
-    path.mkdir(exist_ok=True)
+    return private_dir(Path(tempfile.gettempdir()) / f"aes_swarm_tests_{run}")
+
+
+def private_dir(path: Path) -> Path:
+    """``path``, made a directory of mode 0700 if absent (the workers of a run race for it);
+    RuntimeError if it is anything but this user's directory of mode 0700 (a planted
+    symbolic link, another user's directory)."""
+    with contextlib.suppress(FileExistsError):
+        path.mkdir(mode=0o700)
+    info = os.lstat(path)
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o077:
+        raise RuntimeError(
+            f"{path}: not a directory of this user's with mode 0700 (a link or another "
+            "user's?); the test locks are not taken there: remove it"
+        )
     return path
 
 

@@ -4,15 +4,17 @@ beside it, the others run together, and a waiting ``alone`` test goes before new
 from __future__ import annotations
 
 import os
+import stat
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import uuid
 from pathlib import Path
 
 import pytest
-from helpers.machine_share import RUN_VARIABLE, machine_share
+from helpers.machine_share import RUN_VARIABLE, lock_dir, machine_share
 
 
 @pytest.fixture
@@ -92,3 +94,36 @@ def test_an_alone_test_keeps_the_lock_for_the_next_alone_one(
     finally:
         other.kill()
         other.wait()
+
+
+@pytest.mark.parametrize("planted", ["link", "open dir"])
+def test_a_lock_directory_planted_in_the_temporary_directory_is_refused(
+    planted: str, monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """Someone who guesses the lock directory's name and puts a link (to a directory of
+    the victim's) or a directory anyone may write there first: the locks are not taken
+    through it, and nothing is created where the link points."""
+    run = uuid.uuid4().hex
+    monkeypatch.setenv(RUN_VARIABLE, run)
+    target = tmp_path / "victim"
+    target.mkdir()
+    where = Path(tempfile.gettempdir()) / f"aes_swarm_tests_{run}"
+    if planted == "link":
+        where.symlink_to(target)
+    else:
+        where.mkdir()
+        where.chmod(0o777)
+    try:
+        with pytest.raises(RuntimeError, match="mode 0700"), machine_share(False):
+            pass
+        assert list(target.iterdir()) == [] and sorted(os.listdir(where)) == []
+    finally:
+        where.unlink() if where.is_symlink() else where.rmdir()
+
+
+def test_the_lock_directory_is_this_users_alone(parallel_run: None) -> None:
+    with machine_share(False):
+        pass
+    info = os.lstat(lock_dir())
+    assert stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid()
+    assert stat.S_IMODE(info.st_mode) == 0o700
