@@ -180,9 +180,8 @@ def abandoned_shm(before: set[str]) -> list[str]:
     segment or port (its data, ``_el``/``_sl`` lock and ``sem.…_mutex`` files) that no
     live process maps or holds a lock on. Another swarm on the machine meanwhile keeps
     its own files mapped or locked."""
-    from aes_ros.ros.launch.shared_memory import SHM_DIR, locked_inodes, mapped_files
+    from aes_ros.ros.launch.shared_memory import SHM_DIR, locked, mapped
 
-    locked, mapped = locked_inodes(), mapped_files()
     groups: dict[str, list[Path]] = {}
     for path in SHM_DIR.glob("*fastrtps*"):
         key = re.sub(r"^sem\.|(_el|_sl|_mutex)$", "", path.name)
@@ -190,7 +189,7 @@ def abandoned_shm(before: set[str]) -> list[str]:
 
     def used(path: Path) -> bool:
         try:
-            return str(path) in mapped or path.stat().st_ino in locked
+            return mapped(path) or locked(path) or not path.exists()
         except OSError:
             return True  # gone meanwhile: not left
 

@@ -4,7 +4,7 @@
 that parallel pytest runs on one machine never share one. :class:`Processes` starts
 console scripts (or ``python -m …``) with the test's environment through the
 launcher's own :class:`~aes_ros.ros.launch.processes.ProcessSet` (process groups,
-SIGINT then SIGKILL, ``fastdds shm clean``), and knows each process's log.
+SIGINT then SIGKILL, the shared-memory clean), and knows each process's log.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 from aes_ros.ros.discovery import set_environ
 from aes_ros.ros.launch.processes import Child, ProcessSet, domain_processes
-from aes_ros.ros.launch.shared_memory import domain_port_files, mapped_files
+from aes_ros.ros.launch.shared_memory import SHM_DIR, domain_port_files, mapped
 
 #: Default wait [s] for a reply, a match or a service: generous, since other tests
 #: may load the 2 cores.
@@ -136,9 +136,7 @@ def abandoned_shm(before: set[str], domain: int | None = None) -> set[str]:
     """Fast DDS shared-memory files (of ``domain``) made since ``before`` that no live
     process maps: what processes that are gone left behind (a file the test's own probe
     still maps, as a peer of a dead process, is not abandoned yet)."""
-    made = shm_files(domain) - before  # before the mappings, as the clean does
-    mapped = {Path(path).name for path in mapped_files()}
-    return {name for name in made if name not in mapped}
+    return {name for name in shm_files(domain) - before if not mapped(SHM_DIR / name)}
 
 
 def _domain_processes(domain: str) -> list[tuple[int, str]]:

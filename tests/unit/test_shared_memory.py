@@ -1,5 +1,5 @@
-"""Which Fast DDS port files a clean removes: real files, locks and mappings in a
-directory of /dev/shm standing in for Fast DDS's (no DDS involved)."""
+"""Which Fast DDS files a clean removes: real files, locks, mappings, owners and
+symlinks in a directory of /dev/shm standing in for Fast DDS's (no DDS involved)."""
 
 from __future__ import annotations
 
@@ -61,8 +61,7 @@ def test_only_files_of_gone_listeners_nobody_maps_are_removed(shm_dir: Path) -> 
     with open(ports[HELD]["segment"], "r+b") as f:
         peer = mmap.mmap(f.fileno(), 0)  # a live peer still maps HELD's segment
     try:
-        _, held = shared_memory.abandoned_ports(DOMAIN)
-        assert held == [HELD]
+        assert shared_memory.abandoned_ports(DOMAIN) == ([SHARED, GONE], [HELD])
         shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
         left = {p.name for p in shm_dir.iterdir()}
         assert {p.name for p in ports[ALIVE].values()} <= left  # a live listener's
@@ -94,32 +93,29 @@ def test_a_clean_waits_for_a_peer_to_let_go(shm_dir: Path) -> None:
     assert list(shm_dir.iterdir()) == []
 
 
-def test_a_port_made_while_the_clean_looks_at_proc_is_left_alone(
+def test_a_listener_that_starts_after_the_listing_keeps_its_port(
     shm_dir: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """A participant that starts while a clean reads the mappings: its new port is in no
-    snapshot of locks or mappings, and must not be taken for abandoned (seen in CI: a
-    test's probe lost its port to another test's clean and never heard a message)."""
+    """A participant that takes up a listed port (locks and maps it) between the clean's
+    listing and its look at that port: the port is live, only GONE's files go."""
     gone = make_port(shm_dir, GONE)
+    taken = make_port(shm_dir, SHARED)
     started: dict[str, object] = {}
-    read_mappings = shared_memory.mapped_files
+    list_ports = shared_memory.domain_port_files
 
-    def mappings_then_a_participant_starts() -> set[str]:
-        seen = read_mappings()
-        if not started:
-            files = make_port(shm_dir, SHARED)
-            started["listener"] = os.open(files["lock"], os.O_RDWR)
-            fcntl.flock(started["listener"], fcntl.LOCK_EX | fcntl.LOCK_NB)
-            with open(files["segment"], "r+b") as f:
-                started["segment"] = mmap.mmap(f.fileno(), 0)
-        return seen
+    def listing_then_a_participant_starts(domain: int) -> dict[int, list[Path]]:
+        ports = list_ports(domain)
+        started["listener"] = os.open(taken["lock"], os.O_RDWR)
+        fcntl.flock(started["listener"], fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with open(taken["segment"], "r+b") as f:
+            started["segment"] = mmap.mmap(f.fileno(), 0)
+        return ports
 
-    monkeypatch.setattr(shared_memory, "mapped_files", mappings_then_a_participant_starts)
+    monkeypatch.setattr(shared_memory, "domain_port_files", listing_then_a_participant_starts)
     try:
         shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
         left = {p.name for p in shm_dir.iterdir()}
-        assert left == {f"fastrtps_port{SHARED}", f"fastrtps_port{SHARED}_el",
-                        f"sem.fastrtps_port{SHARED}_mutex"}  # fmt: skip
+        assert left == {p.name for p in taken.values()}
         assert not {p.name for p in gone.values()} & left
     finally:
         started["segment"].close()  # type: ignore[attr-defined]
@@ -132,9 +128,65 @@ def test_young_files_wait_for_a_later_pass(shm_dir: Path, monkeypatch: pytest.Mo
     settle time, and removes them once they are older and still abandoned."""
     monkeypatch.setattr(shared_memory, "YOUNG", 0.5)
     files = make_port(shm_dir, GONE)
-    removable, held = shared_memory.abandoned_ports(DOMAIN)
-    assert (removable, held) == ([], [GONE])
+    assert shared_memory.abandoned_ports(DOMAIN) == ([], [GONE])
     shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
     assert all(path.exists() for path in files.values())
     shared_memory.clean_shared_memory(DOMAIN, settle=5.0)
     assert list(shm_dir.iterdir()) == []
+
+
+def make_segment(directory: Path, name: str) -> dict[str, Path]:
+    """A participant's data segment and its lock file, as Fast DDS names them."""
+    files = {"segment": directory / f"fastrtps_{name}", "lock": directory / f"fastrtps_{name}_el"}
+    for path in files.values():
+        path.write_bytes(b"\0" * mmap.PAGESIZE)
+    return files
+
+
+def test_segments_go_with_their_owner_also_while_a_reader_maps_them(shm_dir: Path) -> None:
+    live = make_segment(shm_dir, "0123456789abcdef")
+    dead = make_segment(shm_dir, "fedcba9876543210")
+    read = make_segment(shm_dir, "00000000deadbeef")
+    owner = os.open(live["lock"], os.O_RDONLY)
+    fcntl.flock(owner, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    with open(read["segment"], "r+b") as f:
+        reader = mmap.mmap(f.fileno(), 0)  # a reader of a writer that is gone
+    try:
+        shared_memory.clean_shared_memory(settle=0.0)
+        assert {p.name for p in shm_dir.iterdir()} == {p.name for p in live.values()}
+        assert reader[:4] == b"\0\0\0\0"  # the reader keeps its mapping
+    finally:
+        reader.close()
+        os.close(owner)
+    assert not any(path.exists() for path in dead.values())
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="chown to another user needs root")
+def test_files_of_another_user_are_not_touched(shm_dir: Path) -> None:
+    """Abandoned-looking port and segment files of uid 65534 (no lock, nobody maps
+    them): theirs to clean, not this user's; root's clean leaves them."""
+    files = [
+        *make_port(shm_dir, GONE).values(),
+        *make_segment(shm_dir, "0123456789abcdef").values(),
+    ]
+    for path in files:
+        os.chown(path, 65534, 65534)
+    shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
+    assert all(path.exists() for path in files)
+
+
+def test_a_symlink_is_neither_followed_nor_removed(shm_dir: Path, tmp_path: Path) -> None:
+    """Port files planted as symlinks to files of this user: the clean removes neither
+    them nor what they point to, and leaves their ports alone."""
+    target = tmp_path / "precious"
+    target.write_bytes(b"data")
+    files = make_port(shm_dir, GONE)
+    files["segment"].unlink()
+    files["segment"].symlink_to(target)
+    lock_target = tmp_path / "precious_lock"
+    lock_target.write_bytes(b"")
+    (shm_dir / f"fastrtps_port{SHARED}_el").symlink_to(lock_target)
+    shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
+    assert target.read_bytes() == b"data" and lock_target.exists()
+    assert all(path.is_symlink() or path.exists() for path in files.values())
+    assert (shm_dir / f"fastrtps_port{SHARED}_el").is_symlink()

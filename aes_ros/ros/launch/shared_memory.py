@@ -1,46 +1,64 @@
 """Fast DDS's shared-memory files (/dev/shm) left behind by processes that are gone.
 
-Fast DDS's shared-memory transport keeps a *port* per listening locator: the segment
-``fastrtps_port<N>`` (N = DDS port, 7400 + 250 · domain + offset, or 7000 + participant
-index, which every domain of the machine shares), its listener's lock file
-``fastrtps_port<N>_el`` (a ``flock`` held while the listener lives) and a semaphore.
-The listener removes its port when it shuts down, but not while another process still
-maps the segment; the last peer to let go usually removes it then, but processes that
-stop together (or are killed) leave port files that nobody removes, and
-``fastdds shm clean`` does not recognise them.
+Fast DDS's shared-memory transport keeps a data *segment* per participant,
+``fastrtps_<16 hex digits>`` with its owner's lock file ``…_el``, and a *port* per
+listening locator: the segment ``fastrtps_port<N>`` (N = DDS port, 7400 + 250 · domain
++ offset, or 7000 + participant index, which every domain of the machine shares), its
+listener's lock file ``fastrtps_port<N>_el`` (``_sl`` for a port several listeners
+read) and a semaphore ``sem.fastrtps_port<N>_mutex``. A live owner or listener holds
+an ``flock`` on the lock file; every process that maps a segment has it open for
+writing. The listener removes its port when it shuts down, but not while another
+process still maps the segment; the last peer to let go usually removes it then, but
+processes that stop together (or are killed) leave files that nobody removes.
 
-:func:`clean_shared_memory` removes them for one ROS domain: files of ports whose
-listener is gone (no lock held on its lock file) and that no live process maps. A peer
-that outlives them (a ``ros2 topic echo``, a test's probe) lets go of a port about
-0.3 s after its listener said goodbye, so the clean waits up to ``settle`` seconds for
-such ports. Ports of live listeners are never touched, whatever domain they serve.
+:func:`clean_shared_memory` removes, of the current user's files only:
+
+- segments whose lock nobody holds;
+- with a ROS domain, that domain's ports whose lock nobody holds and whose files no
+  process maps. A peer that outlives a port's listener (a ``ros2 topic echo``, a
+  test's probe) lets go of it about 0.3 s after the listener said goodbye, so the
+  clean waits up to ``settle`` seconds for such ports.
+
+Both tests ask the kernel, so they see the processes of every PID namespace and user
+that share ``/dev/shm`` (a container, another user's swarm), which ``/proc`` does not:
+a non-blocking ``flock`` (Fast DDS's own lock type: a lock that can be taken is
+nobody's; it is held while the port's files are removed, so no listener takes it
+meanwhile) and a read lease (``F_SETLEASE``), which the kernel refuses while any
+process has the file open for writing, a mapping included. A file is opened with
+``O_NOFOLLOW`` and must be a regular file of the current user: a symlink, or a file of
+another user, is never opened, locked or removed.
 
 A participant starting beside a clean makes its port files one by one, and maps and
-locks them a moment after: the clean lists the files before it looks at the locks and
-mappings (a file made during its look at ``/proc`` is not taken for abandoned), and it
-leaves files younger than :data:`YOUNG` seconds alone for this pass. Ports below 7400
-belong to participants of every domain, so a clean of one domain runs beside the
-starts of the others.
+locks them a moment after: the clean leaves files younger than :data:`YOUNG` seconds
+alone for this pass. Ports below 7400 belong to participants of every domain, so a
+clean of one domain runs beside the starts of the others.
 """
 
 from __future__ import annotations
 
 import contextlib
+import errno
+import fcntl
 import os
 import re
-import subprocess
+import signal
+import stat
 import time
+from collections.abc import Iterator
 from pathlib import Path
-
-from aes_ros.ros.launch.plan import LaunchError, executable
 
 #: Where Fast DDS keeps its shared-memory files (Linux).
 SHM_DIR = Path("/dev/shm")
 _PORT_FILE = re.compile(r"(?:sem\.)?fastrtps_port(\d+)(?:_el|_sl|_mutex)?")
+_SEGMENT_FILE = re.compile(r"fastrtps_([0-9a-z]{16})(?:_el|_sl)?")
 _LOCK_SUFFIXES = ("_el", "_sl")
-#: Seconds a port file is left alone after it was made: its maker may not have mapped
-#: or locked it yet (a loaded machine preempts a starting participant for that long).
+#: Seconds a file is left alone after it was made: its maker may not have mapped or
+#: locked it yet (a loaded machine preempts a starting participant for that long).
 YOUNG = 1.0
+#: The signal a broken lease would send (a process opening the file for writing in
+#: the microseconds the clean holds one): SIGURG, ignored unless handled, instead of
+#: SIGIO, which ends a process.
+_LEASE_SIGNAL = signal.SIGURG
 
 
 def domain_port_files(domain: int) -> dict[int, list[Path]]:
@@ -57,98 +75,161 @@ def domain_port_files(domain: int) -> dict[int, list[Path]]:
     return ports
 
 
-def mapped_files() -> set[str]:
-    """Paths of the /dev/shm files some live process maps (its /proc/<pid>/maps)."""
-    mapped: set[str] = set()
-    for maps in Path("/proc").glob("[0-9]*/maps"):
-        try:
-            text = maps.read_text()
-        except OSError:  # gone, or not ours to read
-            continue
-        mapped.update(
-            line.rsplit(None, 1)[-1] for line in text.splitlines() if str(SHM_DIR) in line
-        )
-    return mapped
+def segment_files() -> dict[str, list[Path]]:
+    """The participants' data segments' files (segment and lock file) by segment name."""
+    segments: dict[str, list[Path]] = {}
+    for path in SHM_DIR.glob("fastrtps_*"):
+        if (m := _SEGMENT_FILE.fullmatch(path.name)) is not None:
+            segments.setdefault(m.group(1), []).append(path)
+    return segments
 
 
-def locked_inodes() -> set[int]:
-    """Inodes of the /dev/shm files a live process holds a lock on (/proc/locks)."""
-    dev = SHM_DIR.stat().st_dev
-    device = f"{os.major(dev):02x}:{os.minor(dev):02x}"
-    inodes: set[int] = set()
-    with contextlib.suppress(OSError):
-        for line in Path("/proc/locks").read_text().splitlines():
-            for field in line.split():
-                if field.startswith(device + ":"):
-                    inodes.add(int(field.rsplit(":", 1)[1]))
-    return inodes
+def _own(info: os.stat_result) -> bool:
+    return stat.S_ISREG(info.st_mode) and info.st_uid == os.geteuid()
 
 
-def _has_listener(files: list[Path], locked: set[int]) -> bool:
-    for path in files:
-        if path.name.endswith(_LOCK_SUFFIXES):
-            with contextlib.suppress(OSError):
-                if path.stat().st_ino in locked:
-                    return True
-    return False
-
-
-def _made_since(path: Path, when: float) -> bool:
+def owned(path: Path) -> bool:
+    """True if ``path`` itself (not what a symlink points to) is a regular file of the
+    current user."""
     try:
-        return path.stat().st_ctime > when
-    except OSError:  # gone already
+        return _own(os.lstat(path))
+    except OSError:
         return False
 
 
-def abandoned_ports(domain: int) -> tuple[list[Path], list[int]]:
-    """Ports of ``domain`` whose listener is gone: their files that no live process maps
-    (to remove), and the ports of which a live peer still maps a file, or whose files
-    are younger than :data:`YOUNG` s (to wait for)."""
-    ports = domain_port_files(domain)  # before the locks and mappings: see the module doc
+@contextlib.contextmanager
+def _opened(path: Path) -> Iterator[int | None]:
+    """A read-only descriptor of ``path`` if it is a regular file of the current user
+    (never through a symlink, never blocking on a planted FIFO), else None."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
+    except OSError:  # gone, a symlink, or not ours to open
+        yield None
+        return
+    try:
+        yield fd if _own(os.fstat(fd)) else None
+    finally:
+        os.close(fd)
+
+
+def _lock(fd: int) -> bool:
+    """Take an exclusive ``flock`` on ``fd`` if nobody holds one (released with ``fd``)."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def in_use(fd: int) -> bool:
+    """True if some process, in any PID namespace, has the file of ``fd`` open for
+    writing (maps it); False also where the kernel grants no leases (then only the
+    locks decide)."""
+    try:
+        fcntl.fcntl(fd, fcntl.F_SETSIG, _LEASE_SIGNAL)
+        fcntl.fcntl(fd, fcntl.F_SETLEASE, fcntl.F_RDLCK)
+    except OSError as err:
+        return err.errno in (errno.EAGAIN, errno.EBUSY)
+    fcntl.fcntl(fd, fcntl.F_SETLEASE, fcntl.F_UNLCK)
+    return False
+
+
+def _mapped(path: Path, fd: int) -> bool:
+    return not path.name.endswith(_LOCK_SUFFIXES) and in_use(fd)
+
+
+def mapped(path: Path) -> bool:
+    """True if ``path`` is a file of the current user that some live process maps."""
+    with _opened(path) as fd:
+        return fd is not None and _mapped(path, fd)
+
+
+def locked(path: Path) -> bool:
+    """True if ``path`` is a file of the current user that some live process holds a
+    lock on."""
+    with _opened(path) as fd:
+        return fd is not None and not _lock(fd)
+
+
+def _young(fd: int, since: float) -> bool:
+    return os.fstat(fd).st_ctime > since
+
+
+def _unlink_if_same(path: Path, fd: int) -> None:
+    """Remove ``path`` if it is still the file of ``fd``."""
+    with contextlib.suppress(OSError):
+        if os.path.samestat(os.lstat(path), os.fstat(fd)):
+            path.unlink()
+
+
+#: What a pass makes of a group of files: not the current user's, its lock held, to
+#: wait for (young, or a peer maps a port's file), removed.
+FOREIGN, LIVE, WAIT, REMOVED = "foreign", "live", "wait", "removed"
+
+
+def _judge(files: list[Path], young_since: float, *, mapped_waits: bool, remove: bool) -> str:
+    """Decide on (and with ``remove``, remove) one segment's or port's files."""
+    if not all(owned(path) for path in files):
+        return FOREIGN
+    with contextlib.ExitStack() as stack:
+        fds = {path: stack.enter_context(_opened(path)) for path in files}
+        fds = {path: fd for path, fd in fds.items() if fd is not None}  # gone meanwhile
+        for path, fd in fds.items():
+            if path.name.endswith(_LOCK_SUFFIXES) and not _lock(fd):
+                return LIVE
+        if any(_young(fd, young_since) for fd in fds.values()):
+            return WAIT
+        free = {path: fd for path, fd in fds.items() if not (mapped_waits and _mapped(path, fd))}
+        if remove:
+            for path, fd in free.items():  # lock files last, still held
+                if not path.name.endswith(_LOCK_SUFFIXES):
+                    _unlink_if_same(path, fd)
+            for path, fd in free.items():
+                if path.name.endswith(_LOCK_SUFFIXES):
+                    _unlink_if_same(path, fd)
+        return REMOVED if len(free) == len(fds) else WAIT
+
+
+def abandoned_ports(domain: int) -> tuple[list[int], list[int]]:
+    """Look without removing: the ports of ``domain`` a pass would remove, and those it
+    would wait for (younger than :data:`YOUNG` s, or a peer maps a file)."""
     young_since = time.time() - YOUNG
-    locked, mapped = locked_inodes(), mapped_files()
-    removable: list[Path] = []
+    removable: list[int] = []
     held: list[int] = []
-    for port, files in sorted(ports.items()):
-        if _has_listener(files, locked):
-            continue
-        if any(_made_since(path, young_since) for path in files):
-            held.append(port)
-            continue
-        free = [path for path in files if str(path) not in mapped]
-        removable += free
-        if len(free) < len(files):
+    for port, files in sorted(domain_port_files(domain).items()):
+        verdict = _judge(files, young_since, mapped_waits=True, remove=False)
+        if verdict == REMOVED:
+            removable.append(port)
+        elif verdict == WAIT:
             held.append(port)
     return removable, held
 
 
-def _fastdds_tool() -> str | None:
-    """``fastdds`` of this environment (next to the interpreter), else from PATH; None
-    if there is none."""
-    try:
-        return executable("fastdds")
-    except LaunchError:
-        return None
-
-
 def remove_abandoned_ports(domain: int) -> list[int]:
-    """One pass of a clean: remove the files of ``domain``'s abandoned ports
-    (:func:`abandoned_ports`); the ports still to wait for."""
-    removable, held = abandoned_ports(domain)
-    for path in removable:
-        with contextlib.suppress(OSError):
-            path.unlink()
+    """One pass of a clean: remove the files of ``domain``'s abandoned ports (of the
+    current user, lock free, nobody maps them); the ports still to wait for."""
+    young_since = time.time() - YOUNG
+    held: list[int] = []
+    for port, files in sorted(domain_port_files(domain).items()):
+        if _judge(files, young_since, mapped_waits=True, remove=True) == WAIT:
+            held.append(port)
     return held
 
 
+def remove_abandoned_segments() -> None:
+    """Remove the data segments (of the current user) whose owner is gone: nobody holds
+    their lock. Readers that still map one keep their mapping."""
+    young_since = time.time() - YOUNG
+    for files in segment_files().values():
+        _judge(files, young_since, mapped_waits=False, remove=True)
+
+
 def clean_shared_memory(domain: int | None = None, settle: float = 2.0) -> None:
-    """Remove Fast DDS shared-memory files whose processes are gone: ``fastdds shm
-    clean`` (segments), and with ``domain`` the files of that ROS domain's abandoned
-    ports (:func:`abandoned_ports`), waiting up to ``settle`` s for live peers to let
+    """Remove the current user's Fast DDS shared-memory files whose processes are gone:
+    segments, and with ``domain`` the files of that ROS domain's abandoned ports
+    (:func:`remove_abandoned_ports`), waiting up to ``settle`` s for live peers to let
     go of them."""
-    if (tool := _fastdds_tool()) is not None:
-        with contextlib.suppress(OSError, subprocess.SubprocessError):
-            subprocess.run([tool, "shm", "clean"], capture_output=True, timeout=30, check=False)
+    remove_abandoned_segments()
     if domain is None:
         return
     deadline = time.monotonic() + settle
