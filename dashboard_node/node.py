@@ -68,8 +68,8 @@ class DashboardNode(Node):
     """The dashboard's node ``dashboard``.
 
     Parameters (read at start): ``host`` (string, default ``127.0.0.1``) and
-    ``port`` (int, default 8080) of the web server; ``token`` (string, default
-    empty: one is made when ``host`` is not a loopback address); ``frame_rate``
+    ``port`` (int, default 8080) of the web server (its token is not a parameter:
+    :mod:`dashboard_node.access`); ``frame_rate``
     [Hz] (default 15) of the page's updates; ``label``: the run's name in the status
     line (default: the scenario file's name); ``markers_rate`` [Hz] (default 10,
     at most 10 and at most ``frame_rate``: both come from one frame) of
@@ -85,13 +85,6 @@ class DashboardNode(Node):
         self.declare_parameter("host", "127.0.0.1", rp.text_descriptor("web server address", **ro))
         self.declare_parameter(
             "port", 8080, rp.int_descriptor("web server port (0: any free one)", 0, 65535, **ro)
-        )
-        self.declare_parameter(
-            "token",
-            "",
-            rp.text_descriptor(
-                "access token; empty: made up when host is not a loopback address", **ro
-            ),
         )
         self.declare_parameter(
             "frame_rate", 15.0, rp.float_descriptor("updates of the page", "Hz", 1.0, 60.0, **ro)
@@ -340,11 +333,14 @@ def _summary(control: SetGain, results: dict[str, tuple[bool, str]]) -> tuple[bo
     return not refused, text
 
 
-def main(args: list[str] | None = None) -> int:
+def main(args: list[str] | None = None, *, print_url: bool = False) -> int:
     """``aes-dashboard``: the node spins in a thread, the web server in the main one,
     until SIGINT or SIGTERM. Exit code 0 then; 1 if it cannot start (a bad
-    parameter, the port taken) or its node fails."""
+    parameter or token, the port taken) or its node fails. The token comes from the
+    environment (:func:`dashboard_node.access.given_token`) or is made up; the URL
+    with it goes to stdout if made up or ``print_url``."""
     import asyncio
+    import os
     import signal
 
     import rclpy
@@ -353,6 +349,7 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from aes_ros.ros.spin import STARTUP_ERRORS, node_help, wants_help
+    from dashboard_node.access import TokenError, given_token
     from dashboard_node.server import Dashboard
 
     if wants_help(args):
@@ -368,7 +365,9 @@ def main(args: list[str] | None = None) -> int:
         executor = EventsExecutor()
         executor.add_node(node)
         get = node.get_parameter
-        dashboard = Dashboard(node, get("host").value, get("port").value, get("token").value)
+        token = given_token(os.environ)
+        host, port = get("host").value, get("port").value
+        dashboard = Dashboard(node, host, port, token, print_url=print_url or token is None)
 
         async def serve() -> int:
             stop = asyncio.Event()
@@ -395,7 +394,7 @@ def main(args: list[str] | None = None) -> int:
             return 1 if failed else 0
 
         return asyncio.run(serve())
-    except (*STARTUP_ERRORS, OSError) as exc:
+    except (*STARTUP_ERRORS, OSError, TokenError) as exc:
         rclpy.logging.get_logger(names.DASHBOARD_NODE).fatal(f"cannot start: {exc}")
         return 1
     finally:

@@ -8,15 +8,19 @@ page is plain HTML, CSS and a JavaScript module served from this package
 
 - ``GET /``: the page; ``GET /static/<file>``: its assets;
 - ``GET /ws``: a viewer's WebSocket. The server sends the sheet (``type: sheet``)
+  and whether this viewer may steer (``type: access``, ``control``: true or false)
   once, then a frame (``type: frame``) at ``frame_rate``; the viewer sends control
   messages (:mod:`dashboard_node.controls`) and gets a ``type: result`` for each.
 
-Safety: on a loopback address anyone on this machine may connect. On any other
-address every request needs the token (``?token=…`` in the URL, which then sets a
-cookie for the page's assets and WebSocket): without it HTTP gets 401 and the
-WebSocket is refused before it opens, and each refusal is logged. Every control
-message is checked before anything is published, and a viewer may send at most
-10 a second (bursts of 20).
+Access (:mod:`dashboard_node.access`; the table is in docs/dashboard.md): every
+request needs a ``Host`` header naming this server, and the WebSocket (and any
+request that carries an ``Origin``) this server's own origin, else HTTP 403.
+Control messages need the token (``?token=…`` in the URL, which then sets a
+cookie for the page's assets and WebSocket); on a loopback address viewing does
+not, on any other address every request does (HTTP 401). Wrong tokens lock their
+address out for a minute (HTTP 429); refusals are logged, throttled. At most
+:data:`~dashboard_node.access.MAX_VIEWERS` viewers (HTTP 503), 10 control messages
+a second each (bursts of 20) and 20 a second of all of them together.
 """
 
 from __future__ import annotations
@@ -24,7 +28,6 @@ from __future__ import annotations
 import asyncio
 import hmac
 import json
-import secrets
 import time
 from importlib import resources
 from typing import Any
@@ -32,29 +35,68 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from aes_ros.ros import interface as names
+from dashboard_node.access import (
+    CONTROL_RATE,
+    MAX_VIEWERS,
+    Failures,
+    Site,
+    is_loopback,
+    new_token,
+    with_token,
+)
 from dashboard_node.controls import ControlError, RateLimit, SetGain, parse_control
 from dashboard_node.node import CALL_TIMEOUT, DashboardNode
 
 #: Files the page may load (nothing else under static/ is served).
 ASSETS = {"index.html": "text/html", "app.js": "text/javascript", "style.css": "text/css"}
-COOKIE = "aes_dashboard_token"
-LOOPBACK = ("127.0.0.1", "localhost", "::1")
+#: On every response: no framing, no sniffing, no Referer (the token is in the URL).
+HEADERS = {
+    "Content-Security-Policy": (
+        "default-src 'self'; connect-src 'self'; img-src 'self' data:; object-src 'none'; "
+        "base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+    ),
+    "X-Frame-Options": "DENY",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+    "Cache-Control": "no-store",
+}
+#: Methods that change nothing (every other one needs this server's Origin).
+SAFE_METHODS = ("GET", "HEAD", "OPTIONS")
+#: Set by the guard: whether the request's token lets it steer.
+MAY_CONTROL = web.RequestKey("may_control", bool)
+NO_CONTROL = "refused: this viewer has no token; open the URL the dashboard printed to steer"
 
 
 def needs_token(host: str) -> bool:
-    """True unless the server only listens on this machine."""
-    return host not in LOOPBACK
+    """True if even viewing needs the token: the server listens beyond this machine."""
+    return not is_loopback(host)
 
 
 class Dashboard:
-    """The web side of one dashboard node."""
+    """The web side of one dashboard node; ``token`` None: one is made up. With
+    ``print_url`` the URL with the token goes to stdout once listening (the node's
+    log and /rosout get it without the token)."""
 
-    def __init__(self, node: DashboardNode, host: str, port: int, token: str) -> None:
+    def __init__(
+        self,
+        node: DashboardNode,
+        host: str,
+        port: int,
+        token: str | None = None,
+        *,
+        print_url: bool = False,
+    ) -> None:
         self.node, self.host, self.port = node, host, port
-        self.token = token or (secrets.token_urlsafe(16) if needs_token(host) else "")
+        self.token = token or new_token()
+        self.print_url = print_url
+        self.site = Site(host, port)
+        self.failures = Failures()
+        self.controls = RateLimit(*CONTROL_RATE)  # of all viewers together
         self.viewers: set[web.WebSocketResponse] = set()
+        self.opening = 0  # viewers whose WebSocket is being opened
         self.frames_sent = 0
         self.app = web.Application(middlewares=[self.guard])
+        self.app.on_response_prepare.append(_add_headers)
         self.app.add_routes(
             [
                 web.get("/", self.on_page),
@@ -64,26 +106,55 @@ class Dashboard:
         )
 
     @property
+    def address(self) -> str:
+        """The page's URL without the token (what the node logs)."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"http://{host}:{self.port}/"
+
+    @property
     def url(self) -> str:
-        query = f"?token={self.token}" if self.token else ""
-        return f"http://{self.host}:{self.port}/{query}"
+        """The page's URL with the token: for the owner's terminal only."""
+        return with_token(self.address, self.token)
+
+    @property
+    def cookie(self) -> str:
+        """The token's cookie; one per port, since cookies do not tell ports apart."""
+        return f"aes_dashboard_token_{self.port}"
 
     # --- access ---------------------------------------------------------------------
 
-    def allowed(self, request: web.Request) -> bool:
-        if not self.token:
-            return True
-        given = request.query.get("token") or request.cookies.get(COOKIE, "")
-        return hmac.compare_digest(given.encode(), self.token.encode())
-
     @web.middleware
     async def guard(self, request: web.Request, handler: Any) -> web.StreamResponse:
-        if not self.allowed(request):
-            self.node._warn(f"refused {request.path}: no valid token (from {request.remote})")
-            return web.Response(status=401, text="401: this dashboard needs its token (?token=…)")
+        if self.site.port != self.port:  # port 0 became a real one
+            self.site = Site(self.host, self.port)
+        remote = request.remote or "?"
+        if not self.site.host_allowed(request.host):
+            self.node._warn(f"refused a request for another Host: {request.host!r} from {remote}")
+            return _refusal(403, "this server does not answer to that Host name")
+        origin = request.headers.get("Origin")
+        needs_origin = request.method not in SAFE_METHODS or request.path == "/ws"
+        if (origin is not None or needs_origin) and not self.site.origin_allowed(origin):
+            self.node._warn(f"refused a request from another page: Origin {origin!r} from {remote}")
+            return _refusal(403, "only this dashboard's own page may do that")
+        from_query = request.query.get("token")
+        given = from_query if from_query is not None else request.cookies.get(self.cookie)
+        now = time.monotonic()
+        if given is not None and self.failures.locked(remote, now):
+            return _refusal(429, "too many wrong tokens from this address: wait a minute")
+        valid = given is not None and hmac.compare_digest(given.encode(), self.token.encode())
+        if given is not None and not valid:
+            self.failures.add(remote, now)
+            self.node._warn(f"refused a wrong token: {request.path} from {remote}")
+            response = _refusal(401, "wrong token: open the URL the dashboard printed")
+            response.del_cookie(self.cookie)
+            return response
+        if not valid and needs_token(self.host):
+            self.node._warn(f"refused a request with no valid token: {request.path} from {remote}")
+            return _refusal(401, "this dashboard needs its token (?token=…)")
+        request[MAY_CONTROL] = valid
         response = await handler(request)
-        if self.token and request.query.get("token"):
-            response.set_cookie(COOKIE, self.token, httponly=True, samesite="Strict")
+        if valid and from_query is not None and not response.prepared:
+            response.set_cookie(self.cookie, self.token, httponly=True, samesite="Strict")
         return response
 
     # --- HTTP ----------------------------------------------------------------------
@@ -104,28 +175,47 @@ class Dashboard:
 
     # --- viewers --------------------------------------------------------------------
 
-    async def on_socket(self, request: web.Request) -> web.WebSocketResponse:
+    async def on_socket(self, request: web.Request) -> web.StreamResponse:
+        if len(self.viewers) + self.opening >= MAX_VIEWERS:
+            self.node._warn(f"refused a viewer: already {MAX_VIEWERS} (from {request.remote})")
+            return _refusal(503, f"already {MAX_VIEWERS} viewers")
         ws = web.WebSocketResponse(heartbeat=10.0, max_msg_size=1 << 16)
-        await ws.prepare(request)
+        self.opening += 1
+        try:
+            await ws.prepare(request)
+        finally:
+            self.opening -= 1
+        may_control = request.get(MAY_CONTROL, False)
         limit = RateLimit()
         with self.node.lock:
             sheet = self.node.view.sheet_message()
         await ws.send_str(json.dumps(sheet))
+        await ws.send_str(json.dumps({"type": "access", "control": may_control}))
         self.viewers.add(ws)
         try:
             async for message in ws:
                 if message.type == WSMsgType.TEXT:
-                    await ws.send_str(json.dumps(await self.control(message.data, limit)))
+                    if not may_control:
+                        answer = _result(False, NO_CONTROL)
+                    else:
+                        answer = await self.control(message.data, limit)
+                    await ws.send_str(json.dumps(answer))
                 elif message.type == WSMsgType.BINARY:
                     await ws.send_str(json.dumps(_result(False, "send JSON text, not binary")))
+                elif message.type == WSMsgType.ERROR:  # e.g. a message over max_msg_size
+                    break
         finally:
             self.viewers.discard(ws)
         return ws
 
     async def control(self, text: str, limit: RateLimit) -> dict[str, Any]:
         """Check one control message and, if it passes, have the node carry it out."""
-        if not limit.allow(time.monotonic()):
+        now = time.monotonic()
+        if not limit.allow(now):
             return _result(False, "too many control messages: at most 10 a second")
+        if not self.controls.allow(now):
+            rate = CONTROL_RATE[0]
+            return _result(False, f"too many control messages: at most {rate:g} a second in all")
         try:
             control = parse_control(text)
         except ControlError as exc:
@@ -183,7 +273,9 @@ class Dashboard:
         await site.start()
         if self.port == 0:
             self.port = runner.addresses[0][1]
-        self.node.get_logger().info(f"{names.DASHBOARD_READY} {self.url}")
+        self.node.get_logger().info(f"{names.DASHBOARD_READY} {self.address}")
+        if self.print_url:  # the owner's terminal: never the log or /rosout
+            print(f"{names.DASHBOARD_READY} {self.url}", flush=True)
         try:
             await self.broadcast(stop)
         finally:
@@ -195,6 +287,15 @@ class Dashboard:
                 f"{self.node.markers_published} marker arrays published, "
                 f"{self.node.frames_made} frames made"
             )
+
+
+def _refusal(status: int, why: str) -> web.Response:
+    """An HTTP refusal with its reason as the body."""
+    return web.Response(status=status, text=f"{status}: {why}")
+
+
+async def _add_headers(request: web.Request, response: web.StreamResponse) -> None:
+    response.headers.update(HEADERS)
 
 
 def _result(ok: bool, message: str) -> dict[str, Any]:

@@ -2,18 +2,23 @@
 
 Examples::
 
-    aes-swarm dashboard                              # http://127.0.0.1:8080/, this machine only
+    aes-swarm dashboard                              # prints http://127.0.0.1:8080/?token=…
     aes-swarm dashboard --setup linear --robots 16 --port 8090
-    aes-swarm dashboard --host 0.0.0.0               # other machines: prints a URL with a token
+    aes-swarm dashboard --host 0.0.0.0               # other machines too (all need the token)
+    AES_DASHBOARD_TOKEN_FILE=~/.dashboard-token aes-swarm dashboard   # a token of your own
 
 It is a ROS node (``/dashboard``) in this ROS domain: it drives a swarm started by
 ``aes-swarm launch``, ``scripts/start_swarm.sh`` or on other hosts, through the same
-topics, services and parameters as the CLI.
+topics, services and parameters as the CLI. Its token is made up, or taken from
+``AES_DASHBOARD_TOKEN`` or a file of mode 0600 (``--token-file``), never from the
+command line; the URL with it is printed here only.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -28,15 +33,39 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument(
         "--host", default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1; any other needs the token)",
+        help="address to listen on (default 127.0.0.1; any other: viewing needs the token too)",
     )  # fmt: skip
-    p.add_argument("--token", default="", help="access token (default: made up when needed)")
+    p.add_argument(
+        "--token-file", type=Path, default=None, metavar="FILE",
+        help="read the access token from FILE (mode 0600, at least 16 characters); "
+        "default: $AES_DASHBOARD_TOKEN, else one is made up",
+    )  # fmt: skip
+    p.add_argument("--token", default=None, help=argparse.SUPPRESS)  # refused: see run()
 
 
 def run(args: argparse.Namespace) -> int:
     from aes_ros.ros.launch.plan import ros_args, write_scenario
+    from dashboard_node.access import TOKEN_VARIABLE, TokenError, given_token, read_token_file
     from dashboard_node.node import main
 
+    if args.token is not None:
+        print(
+            "aes-swarm dashboard: error: --token: a token on the command line is visible to "
+            f"every user of this machine (ps); put it in ${TOKEN_VARIABLE} or in a file of "
+            "mode 0600 given with --token-file",
+            file=sys.stderr,
+        )
+        return 2
+    try:
+        if args.token_file is not None:
+            token = read_token_file(args.token_file.expanduser())
+        else:
+            token = given_token(os.environ)
+    except TokenError as exc:
+        print(f"aes-swarm dashboard: error: {exc}", file=sys.stderr)
+        return 2
+    if token is not None:  # to the node in this process, by environment, never argv
+        os.environ[TOKEN_VARIABLE] = token
     sc = load_scenario(args)
     with tempfile.TemporaryDirectory(prefix="aes-dashboard-") as tmp:
         name = args.scenario.stem if args.scenario is not None else args.setup
@@ -45,7 +74,6 @@ def run(args: argparse.Namespace) -> int:
             "scenario": str(scenario_file),
             "host": args.host,
             "port": int(args.port),
-            "token": args.token,
             "use_sim_time": True,
         }
-        return main(["aes-dashboard", *ros_args(params)])
+        return main(["aes-dashboard", *ros_args(params)], print_url=True)

@@ -25,7 +25,10 @@ const state = {
 window.aesDashboard = state;
 
 const $ = (id) => document.getElementById(id);
+// The token comes with the URL the dashboard printed; it goes on the WebSocket's URL
+// (the server also keeps it in a cookie) and leaves the address bar and history.
 const token = new URLSearchParams(location.search).get("token");
+if (token) history.replaceState(null, "", location.pathname);
 let socket = null;
 
 // --------------------------------------------------------------------- connection
@@ -75,6 +78,8 @@ function receive(message) {
       if (field) field.placeholder = value == null ? "" : String(value);
     }
     schedule();
+  } else if (message.type === "access" && !message.control) {
+    note(false, "viewing only: open the URL the dashboard printed (with ?token=…) to steer");
   } else if (message.type === "result") {
     const control = state.sent.shift();
     if (!message.ok && control && control.type === "drive") forget(control);
