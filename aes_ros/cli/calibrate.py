@@ -10,14 +10,18 @@ height); ``--camera-info`` gives the camera's intrinsics in the ROS camera_info 
 layout (what ``camera_calibration`` writes). The calibration maps image points to the
 arena at the markers' height (:mod:`tracker_node.calibration`); its residuals are
 printed, one line per reference marker. A frame that shows too few reference markers,
-or markers on one line, is refused with what is missing, and nothing is written.
+or markers on one line, is refused with what is missing, and nothing is written; so is
+an ``--out`` that exists, unless ``--overwrite``.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
+
+from aes_ros.previous_run import add_overwrite_option, refuse, remove
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -27,7 +31,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--camera-info", type=Path, required=True, metavar="FILE",
         help="the camera's intrinsics (ROS camera_info YAML)",
     )  # fmt: skip
-    p.add_argument("--out", type=Path, required=True, help="calibration.yaml to write")
+    p.add_argument(
+        "--out", type=Path, required=True,
+        help="calibration.yaml to write (an existing file is refused unless --overwrite)",
+    )  # fmt: skip
+    add_overwrite_option(p, "calibration at --out")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -36,6 +44,8 @@ def run(args: argparse.Namespace) -> int:
     from tracker_node.calibration import CalibrationError, calibrate, load_layout
     from tracker_node.camera_info import load_camera_info
 
+    found = [args.out] if os.path.lexists(args.out) else []
+    refuse(found, f"--out {args.out}", args.overwrite, "an earlier calibration")
     try:
         layout = load_layout(args.layout)
         K, dist, size = load_camera_info(args.camera_info)
@@ -51,6 +61,7 @@ def run(args: argparse.Namespace) -> int:
     except CalibrationError as exc:
         print(f"aes-swarm calibrate: error: {exc}", file=sys.stderr)
         return 2
+    remove(found)  # with --overwrite (a link is replaced, not what it points to)
     calibration.save(args.out)
     print(f"calibrated: {residuals}")
     for i, px, mm in zip(residuals.ids, residuals.reprojection_px, residuals.arena_mm, strict=True):

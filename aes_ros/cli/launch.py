@@ -13,7 +13,9 @@ Examples::
 ``launch`` starts ``aes-sim-bridge``, ``aes-supervisor`` and the robot hosts
 as separate processes (see :mod:`aes_ros.ros.launch`), waits until every
 robot moves, runs ``--duration`` seconds of sim time (0: until Ctrl-C), stops
-every process and writes the same outputs as ``aes-swarm simulate``.
+every process and writes the same outputs as ``aes-swarm simulate``. A launch whose
+``--out`` holds an earlier run, or whose ``--record`` names an earlier recording, is
+refused before anything starts (exit code 2) unless ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from pathlib import Path
 
 from aes_ros import scenario
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.previous_run import add_overwrite_option
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
 from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_FROM, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
@@ -53,7 +56,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the initial state (as simulate)")
     p.add_argument(
         "--record", type=Path, default=None, metavar="FILE.mcap",
-        help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag",
+        help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag; where an "
+        "earlier recording's files are (FILE, its segments FILE_1.mcap …) it is refused "
+        "unless --overwrite",
     )  # fmt: skip
     p.add_argument(
         "--record-images", type=number_type(float, 0.0, 240.0), default=0.0, metavar="RATE",
@@ -73,7 +78,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="with --bag-split: keep only the newest K segments (K >= 1), deleting older "
         "ones as new ones start (default: all)",
     )  # fmt: skip
-    p.add_argument("--out", type=Path, default=None, help="output directory (plots, metrics, logs)")
+    p.add_argument(
+        "--out", type=Path, default=None,
+        help="output directory (plots, metrics, logs); one that holds an earlier run's "
+        "outputs is refused unless --overwrite",
+    )  # fmt: skip
+    add_overwrite_option(p, "outputs in --out and recording at --record")
     p.add_argument("--gui", action="store_true", help="show the pybullet GUI")
     p.add_argument(
         "--lockstep", action="store_true",
@@ -206,7 +216,7 @@ def _pixels(text: str) -> tuple[int, int]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from aes_ros.ros.launch import LaunchConfig, LaunchError, launch
+    from aes_ros.ros.launch import LaunchConfig, LaunchError, launch, preflight
 
     sc = load_scenario(args)
     if args.perception:
@@ -241,10 +251,22 @@ def run(args: argparse.Namespace) -> int:
             discovery=args.discovery,
             discovery_server=args.discovery_server,
             discovery_port=args.discovery_port,
+            overwrite=args.overwrite,
         )
     except ValueError as exc:  # an option that does not fit the others, named
         print(f"aes-swarm launch: error: {exc}", file=sys.stderr)
         return 2
+    preflight.earlier_run(config)  # an EarlierRunError: exit code 2, before anything starts
+    if args.dashboard is not None:  # its token from the environment, if given: usable?
+        import os
+
+        from dashboard_node.access import TokenError, given_token
+
+        try:
+            given_token(os.environ)
+        except TokenError as exc:
+            print(f"aes-swarm launch: error: {exc}", file=sys.stderr)
+            return 2
     try:
         result = launch(config, say=lambda line: print(line, flush=True))
     except LaunchError as exc:

@@ -24,6 +24,7 @@ from aes_ros.cli.options import (
 )
 from aes_ros.optim import tcacs, tuning
 from aes_ros.params import ParameterError
+from aes_ros.previous_run import OPTIMIZE_OUTPUTS, add_overwrite_option, check_out_dir, remove
 
 #: TCACS's options as ``aes-swarm optimize`` spells them (for error messages).
 FLAGS = {
@@ -64,7 +65,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--m", type=float, default=m, help=f"PCA factor m ({m:g})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument(
+        "--out", type=Path, required=True,
+        help="output directory; one that holds an earlier tuning's outputs is refused unless "
+        "--overwrite",
+    )  # fmt: skip
+    add_overwrite_option(p, "outputs in --out")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -78,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
     )
     bounds = tuning.parse_bounds(args.bounds)
     sc = load_scenario(args)
+    earlier = check_out_dir(args.out, OPTIMIZE_OUTPUTS, overwrite=args.overwrite)
     start = time.perf_counter()
     try:
         outcome = tuning.tune(
@@ -97,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # e.g. a non-finite weight
         raise ParameterError(str(exc)) from None
     outcome.extra["total_time_s"] = round(time.perf_counter() - start, 3)
+    remove(earlier)  # with --overwrite: the earlier tuning's files, now that this one is done
     tuning.write_tune_outputs(args.out, outcome, sc, scenario_label(args))
     print(tuning.summary_line(outcome, args.out))
     return 0

@@ -15,6 +15,7 @@ from pathlib import Path
 from aes_ros import report, simulator
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
 from aes_ros.params import PARAMS
+from aes_ros.previous_run import SIMULATE_OUTPUTS, add_overwrite_option, check_out_dir, remove
 
 #: Agent-steps above which a progress bar is shown (about a second of work).
 PROGRESS_ABOVE = 2e7
@@ -39,17 +40,24 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help=f"run length [s] ({PARAMS['duration'].allowed()})",
     )
     p.add_argument("--no-noise", action="store_true", help="switch both noise terms off")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument(
+        "--out", type=Path, required=True,
+        help="output directory; one that holds an earlier run's outputs is refused unless "
+        "--overwrite",
+    )  # fmt: skip
+    add_overwrite_option(p, "outputs in --out")
 
 
 def run(args: argparse.Namespace) -> int:
     sc = load_scenario(args)
+    earlier = check_out_dir(args.out, SIMULATE_OUTPUTS, overwrite=args.overwrite)
     seeds = [args.seed + b for b in range(args.runs)]
     n_robots = len(sc.nominal_positions())
     start = time.perf_counter()
     long_run = args.runs * n_robots * sc.n_steps > PROGRESS_ABOVE
     result = simulator.simulate(sc, seeds, noise=not args.no_noise, progress=long_run)
     elapsed = time.perf_counter() - start
+    remove(earlier)  # with --overwrite: the earlier run's files, now that this one is done
     line = report.write_run_outputs(
         args.out, result.times, result.positions, result.headings, sc, label=scenario_label(args)
     )

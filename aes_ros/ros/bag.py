@@ -21,6 +21,9 @@ a duration (:class:`Split`, like ``ros2 bag record --max-bag-size`` /
 ``--max-bag-duration``) or a recorder restarted after a crash
 (:func:`next_segment`). :func:`bag_segments` lists them in order, also when the
 oldest were deleted (``keep``); :func:`read_bags` reads them as one recording.
+A new recording never replaces files it did not write: where a segment or the journal
+of an earlier recording at its path exists (:func:`recording_files`), it is refused
+unless asked to replace that recording (``overwrite``; ``--overwrite``).
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ from typing import Any, NamedTuple
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapWriter
 from rosidl_adapter.parser import parse_message_string
+
+from aes_ros.previous_run import refuse, remove
 
 #: Separator between the definitions of a schema (rosbag2 / ROS 1 style).
 SEPARATOR = "=" * 80
@@ -89,7 +94,8 @@ class BagWriter:
     def __init__(self, path: str | Path, chunk_size: int = 1024 * 1024) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.path, "wb")  # closed in close()
+        # "x": a file already there (another recording's, a planted link) is never replaced
+        self._file = open(self.path, "xb")  # closed in close()
         self._writer = McapWriter(
             self._file, chunk_size=chunk_size, compression=CompressionType.ZSTD
         )
@@ -225,6 +231,17 @@ def bag_segments(path: str | Path) -> list[Path]:
     found = {segment_index(path, p): p for p in [path, *numbered] if p.is_file()}
     found.pop(None, None)
     return [found[i] for i in sorted(found)]
+
+
+def recording_files(path: str | Path) -> list[Path]:
+    """Every file of a recording at ``path`` that exists, a dangling symbolic link too:
+    its segments in the order of their numbers, then its sequences journal."""
+    path = Path(path)
+    numbered = path.parent.glob(f"{glob.escape(path.stem)}_*{glob.escape(path.suffix)}")
+    found = {segment_index(path, p): p for p in [path, *numbered] if os.path.lexists(p)}
+    found.pop(None, None)
+    journal = sequences_path(path)
+    return [found[i] for i in sorted(found)] + ([journal] if os.path.lexists(journal) else [])
 
 
 def next_segment(path: str | Path) -> int:
@@ -478,11 +495,14 @@ class Recording:
       new segment's start as log time, so that one segment opened alone has them
       (rosbag2 does not do this); :func:`read_bags` reads them once;
     - ``keep``: after opening a segment, only the newest ``keep`` segments of the
-      recording stay; older ones are deleted, whichever recorder wrote them;
-    - ``segment``: the first segment's number; ``0`` starts a new recording and
-      deletes the numbered segments of an earlier one at the same path (they would
-      be read as part of this one), a restarted recorder continues with
-      :func:`next_segment`.
+      recording stay; older ones are deleted (this recording's: a new one starts where
+      no other is);
+    - ``segment``: the first segment's number; ``0`` starts a new recording, a
+      restarted recorder continues with :func:`next_segment`. A new recording where
+      files of an earlier one are (:func:`recording_files`; they would be read as part
+      of this one) raises :class:`~aes_ros.previous_run.EarlierRunError` naming them,
+      unless ``overwrite``: then those files, and only those, are removed first
+      (:attr:`replaced`, said). No segment file is ever opened over an existing one.
 
     ``say`` gets a line for every switch (None: nothing is said).
     """
@@ -497,6 +517,7 @@ class Recording:
         after: dict[str, tuple[int, int]] | None = None,
         lost: dict[str, int] | None = None,
         say: Callable[[str], None] | None = None,
+        overwrite: bool = False,
     ) -> None:
         if keep is not None and keep < 1:
             raise ValueError(f"keep: {keep!r} is not allowed; need an integer >= 1")
@@ -512,10 +533,15 @@ class Recording:
         self._sampled: set[str] = set()
         self._latched: dict[str, tuple[bytes, int, int]] = {}
         self._chunk = min(1024 * 1024, max(split.size // 8, 4096)) if split and split.size else None
-        if segment == 0:  # a new recording at this path: the earlier one's segments go
-            for old in bag_segments(self.base)[1:]:
-                old.unlink(missing_ok=True)
-            sequences_path(self.base).unlink(missing_ok=True)
+        #: The earlier recording's files removed at the start (``overwrite``).
+        self.replaced: list[Path] = []
+        if segment == 0:  # a new recording at this path
+            where, found = f"--record {self.base}", recording_files(self.base)
+            earlier = refuse(found, where, overwrite, "an earlier recording")
+            self.replaced = remove(earlier)
+            if self.replaced and say is not None:
+                gone = ", ".join(p.name for p in self.replaced)
+                say(f"replaced the earlier recording {self.base}: removed {gone}")
         self.first = segment
         self._open(segment, None)
 

@@ -17,9 +17,11 @@ For runs of hours, ``--split SIZE|DURATION`` (``1GiB``, ``500MiB``, ``10min``,
 ``30s``) closes the bag once it has that many bytes on disk or spans that much wall
 time and goes on in the next segment (``run_1.mcap``, ``run_2.mcap``…, the numbering
 a restarted recorder continues, ``--segment``); ``--keep K`` deletes all but the
-newest K segments. Every closed segment is a complete bag with its own counts and
-losses, and starts with the last message of each latched topic, so that it can be
-read alone (:class:`aes_ros.ros.bag.Recording`).
+newest K segments. A new recording (segment 0) where an earlier one's files are is
+refused unless ``--overwrite`` (which removes those files, and only those, first).
+Every closed segment is a complete bag with its own counts and losses, and starts
+with the last message of each latched topic, so that it can be read alone
+(:class:`aes_ros.ros.bag.Recording`).
 
 Nothing is lost silently. Each message is stored with its publisher's send time
 and sequence number, so gaps in a topic's numbers are messages that did not reach
@@ -60,6 +62,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 
+from aes_ros.previous_run import EarlierRunError
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import (
     SPLIT_FORMS,
@@ -318,7 +321,8 @@ def main(argv: list[str] | None = None) -> int:
     """``python -m aes_ros.ros.recorder OUT.mcap [--robots N] [--split SIZE|DURATION]
     [--keep K] [--ros-args ...]``.
 
-    Exit code 0 after SIGINT/SIGTERM (bag closed), 3 when the bag cannot be written.
+    Exit code 0 after SIGINT/SIGTERM (bag closed), 2 when an earlier recording's files
+    are at OUTPUT (without ``--overwrite``), 3 when the bag cannot be written.
     """
     argv = sys.argv[1:] if argv is None else argv
     cut = argv.index("--ros-args") if "--ros-args" in argv else len(argv)
@@ -350,7 +354,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--segment", type=_count(0), default=0, metavar="I",
         help="start with segment I of the recording OUTPUT (a restarted recorder: the "
-        "next number; default 0: a new recording, replacing an earlier one's segments)",
+        "next number; default 0: a new recording, refused where an earlier one's files are)",
+    )  # fmt: skip
+    parser.add_argument(
+        "--overwrite", action="store_true",
+        help="a new recording where an earlier one's files are (OUTPUT, its numbered "
+        "segments, its journal): remove those first instead of refusing (exit code 2)",
     )  # fmt: skip
     args = parser.parse_args(argv[:cut])
     # SIGINT/SIGTERM end spin(); what the readers still hold is written, then the
@@ -374,7 +383,12 @@ def main(argv: list[str] | None = None) -> int:
             after=after,
             lost=lost,
             say=say,
+            overwrite=args.overwrite,
         )
+    except EarlierRunError as exc:
+        say(f"recording refused: {exc}")
+        rclpy.try_shutdown()
+        return 2
     except OSError as exc:
         say(f"recording stopped: cannot write {args.output}: {exc.strerror or exc}")
         rclpy.try_shutdown()

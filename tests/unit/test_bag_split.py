@@ -17,7 +17,9 @@ from std_msgs.msg import Float64
 
 from aes_ros import scenario
 from aes_ros.cli import main as aes_swarm
+from aes_ros.previous_run import EarlierRunError
 from aes_ros.ros.bag import (
+    BagWriter,
     Journal,
     Recording,
     Split,
@@ -198,7 +200,7 @@ def test_losses_are_counted_per_segment_and_none_at_a_switch(tmp_path: Path) -> 
 def test_a_restarted_recorder_continues_the_numbering(tmp_path: Path) -> None:
     """A recorder killed in its third segment, restarted into the next number with the
     last sequence numbers on disk: one recording, in order, each message once, the
-    resent history not counted twice; a new recording at the path replaces them all."""
+    resent history not counted twice; a new recording at the path, asked to, replaces them all."""
     base = tmp_path / "run.mcap"
     rec = start(base, split=Split(seconds=10.0))
     write_stream(rec, range(50))
@@ -214,7 +216,7 @@ def test_a_restarted_recorder_continues_the_numbering(tmp_path: Path) -> None:
     stream = [msg.data for _, _, msg in read_bags(segments, [STREAM])]
     assert stream == list(range(90))
     assert {recording_summary(p)["lost_total"] for p in segments[3:]} == {"0"}
-    fresh = Recording(base)
+    fresh = Recording(base, overwrite=True)
     fresh.close()
     assert bag_segments(base) == [base]
 
@@ -223,7 +225,7 @@ def test_the_journal_gives_a_restart_the_last_numbers_on_disk(tmp_path: Path) ->
     """Each flush leaves the last sequence numbers on disk in the journal, equal to what
     reading every segment gives (a restarted recorder reads it: the segments of a
     100-robot swarm take minutes); messages not flushed yet are not in it; a new
-    recording at the path starts without one."""
+    recording that replaces the earlier one starts without one."""
     base = tmp_path / "run.mcap"
     rec = start(base, split=Split(seconds=10.0))
     write_stream(rec, range(50))
@@ -232,7 +234,7 @@ def test_the_journal_gives_a_restart_the_last_numbers_on_disk(tmp_path: Path) ->
     journal = read_sequences(base)
     assert journal == last_sequences(bag_segments(base))
     assert journal[STREAM] == (50, T0 + 49 * STEP) and journal[LATCHED] == (1, T0)
-    fresh = Recording(base)
+    fresh = Recording(base, overwrite=True)
     assert read_sequences(base) is None
     fresh.close()
 
@@ -354,3 +356,40 @@ def test_recorder_rejects_bad_split_options(capsys) -> None:
             main(["run.mcap", *args])
         assert exit_.value.code == 2
         assert expected in capsys.readouterr().err
+
+
+def test_a_new_recording_never_removes_files_it_did_not_write(tmp_path: Path) -> None:
+    """An earlier recording's segment or journal at the path: a new recording is refused,
+    naming them, and nothing is touched; with ``overwrite`` exactly those go (and it
+    says so), never a file of another name."""
+    base = tmp_path / "run.mcap"
+    earlier = [base.with_name("run_1.mcap"), base.with_name("run.sequences.json")]
+    others = [tmp_path / name for name in ("run_x.mcap", "run.mcap.bak", "other_1.mcap")]
+    for path in (*earlier, *others):
+        path.write_bytes(b"not this recording's")
+    with pytest.raises(EarlierRunError, match=r"holds an earlier recording \(run_1\.mcap, run"):
+        Recording(base)
+    assert not base.exists()
+    assert all(p.read_bytes() == b"not this recording's" for p in (*earlier, *others))
+    said: list[str] = []
+    rec = Recording(base, overwrite=True, say=said.append)
+    assert rec.replaced == earlier and not any(p.exists() for p in earlier)
+    rec.close()  # (with this recording's own journal)
+    assert said == [
+        f"replaced the earlier recording {base}: removed run_1.mcap, run.sequences.json"
+    ]
+    assert all(p.read_bytes() == b"not this recording's" for p in others)
+    assert bag_segments(base) == [base] and bag_is_closed(base)
+
+
+def test_a_segment_is_never_opened_over_a_planted_link(tmp_path: Path) -> None:
+    """A link at a segment's name is an earlier file like any other: refused, and never
+    followed (the file it points to keeps its bytes), also by the writer alone."""
+    base, target = tmp_path / "run.mcap", tmp_path / "precious"
+    target.write_bytes(b"precious")
+    base.symlink_to(target)
+    with pytest.raises(EarlierRunError):
+        Recording(base)
+    with pytest.raises(FileExistsError):
+        BagWriter(base)
+    assert target.read_bytes() == b"precious"

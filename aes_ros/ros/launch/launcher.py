@@ -32,8 +32,10 @@ What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
    arena seconds from the first tracked pose; the first sample is the last one before
    every robot had moved).
 
-Before it starts anything it checks (:mod:`aes_ros.ros.launch.preflight`) that the
-outputs can be written and have room, and that no other swarm is active in this
+Before it starts anything it checks (:mod:`aes_ros.ros.launch.preflight`) that no
+earlier run's outputs or recording are where it would write (refused, or with
+``overwrite`` removed: :mod:`aes_ros.previous_run`), that the outputs can be written
+and have room, and that no other swarm is active in this
 ROS domain (not with a discovery server of its own, whose only clients are its
 processes). SIGINT or SIGTERM to the launcher ends the run early the same way
 (processes stopped, bag closed, outputs written from what was sampled). If the
@@ -62,6 +64,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from aes_ros.previous_run import OVERWRITE, EarlierRunError, remove
 from aes_ros.report import progress
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
@@ -129,6 +132,13 @@ class Launcher:
     def __init__(self, config: LaunchConfig, say: Callable[[str], None] = print) -> None:
         self.config = config
         self.say = say
+        try:
+            earlier = preflight.earlier_run(config)
+        except EarlierRunError as exc:
+            raise LaunchError(str(exc)) from None
+        if earlier:
+            gone = ", ".join(str(path) for path in remove(earlier))
+            say(f"launch: {OVERWRITE}: removed the earlier run's {gone}")
         self._own_work_dir = config.work_dir is None and config.out_dir is None
         self.work_dir = work_directory(config)
         logs = self.work_dir / "logs"
@@ -234,10 +244,18 @@ class Launcher:
                 self.procs.start(*spec)
             self._wait_first_poses(bridge)
         if order.dashboard is not None:  # and its URL, from its ready line
+            from dashboard_node import access
+
+            # the token by environment (argv is public), in the URL on this terminal only
+            try:
+                token = access.given_token(os.environ) or access.new_token()
+            except access.TokenError as exc:
+                raise LaunchError(str(exc)) from None
+            self.procs.env_for[order.dashboard.name] = {access.TOKEN_VARIABLE: token}
             dashboard = self.procs.start(*order.dashboard)
             dashboard.wait_for(names.DASHBOARD_READY, 30.0, self._sampling)
             if (url := dashboard.line_after(names.DASHBOARD_READY)) is not None:
-                self.say(f"launch: dashboard at {url}")
+                self.say(f"launch: dashboard at {access.with_token(url, token)}")
         state = self.procs.log_dir / "world_state.npz"
         restart = RestartCommands(
             self._specs, self.monitor, state, cfg.record, n, images_rate=cfg.record_images

@@ -90,6 +90,9 @@ class LaunchConfig:
         ``discovery_server`` or ``discovery_port``). discovery_server :
         ``HOST:PORT`` of an existing server to use (e.g. on another host); without it a
         server mode launch starts its own, on ``discovery_port`` (None: a free UDP port).
+    overwrite : replace an earlier run's outputs in ``out_dir`` and an earlier recording
+        at ``record`` (removed before anything starts); without it a launch where they
+        are is refused (:func:`aes_ros.ros.launch.preflight.earlier_run`).
     """
 
     scenario: Scenario
@@ -127,6 +130,7 @@ class LaunchConfig:
     discovery: str = "auto"
     discovery_server: str | None = None
     discovery_port: int | None = None
+    overwrite: bool = False
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
@@ -650,7 +654,8 @@ def describe(config: LaunchConfig, hosts: int, discovery: dds.Discovery | None =
 
 
 def dashboard_command(config: LaunchConfig, scenario_file: Path) -> ProcessSpec:
-    """``aes-dashboard`` on 127.0.0.1 at ``config.dashboard``, with sim time."""
+    """``aes-dashboard`` on 127.0.0.1 at ``config.dashboard``, with sim time; its token
+    is not on this command line (the launcher hands it over by environment)."""
     params = {
         "scenario": str(scenario_file),
         "host": "127.0.0.1",

@@ -1,5 +1,6 @@
-"""Checks before a launch starts anything: can its outputs be written, and is there
-room for them (pure: files and disk space; the domain check is the monitor's)."""
+"""Checks before a launch starts anything: would it write over an earlier run, can its
+outputs be written, and is there room for them (pure: files and disk space; the
+domain check is the monitor's)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from aes_ros.ros.bag import parse_split
+from aes_ros.previous_run import LAUNCH_OUTPUTS, check_out_dir, refuse
+from aes_ros.ros.bag import parse_split, recording_files
 from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
 
 #: Bytes per sample per robot of the trajectory: 3 float64 in trajectory.h5, written
@@ -23,6 +25,19 @@ BAG_BYTES_PER_ROBOT = 160
 BAG_BYTES_PER_STEP = 600
 #: Sim seconds assumed for a run without a set duration (``--duration 0``).
 OPEN_ENDED_S = 600.0
+
+
+def earlier_run(config: LaunchConfig) -> list[Path]:
+    """The files of an earlier run where this launch would write: its outputs in
+    ``out_dir`` (:data:`~aes_ros.previous_run.LAUNCH_OUTPUTS`) and the files of an
+    earlier recording at ``record`` (:func:`~aes_ros.ros.bag.recording_files`).
+    :class:`~aes_ros.previous_run.EarlierRunError` naming them unless
+    ``config.overwrite``, when they are returned for the launcher to remove."""
+    found = check_out_dir(config.out_dir, LAUNCH_OUTPUTS, overwrite=config.overwrite)
+    if config.record is not None:
+        bag = recording_files(config.record)
+        found += refuse(bag, f"--record {config.record}", config.overwrite, "an earlier recording")
+    return found
 
 
 def check_writable(directory: Path, what: str) -> None:
