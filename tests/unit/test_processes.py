@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from aes_ros.ros.launch.plan import LaunchError
-from aes_ros.ros.launch.processes import ProcessSet
+from aes_ros.ros.launch.processes import ProcessSet, die_with_parent, start_time
+from aes_ros.ros.launch.reaper import alive, read_pid_file, reap
 
 
 def test_a_wait_reads_only_this_process_s_output(tmp_path: Path) -> None:
@@ -30,3 +35,65 @@ def test_a_wait_reads_only_this_process_s_output(tmp_path: Path) -> None:
         assert "http://old" in (tmp_path / "dashboard.log").read_text()  # one log, kept
     finally:
         procs.stop_all(5.0)
+
+
+def test_a_pid_file_names_each_live_child_with_its_start_time(tmp_path: Path) -> None:
+    procs = ProcessSet(tmp_path, pid_file=tmp_path / "pids")
+    try:
+        children = [procs.start(f"sleep_{k}", ["sleep", "30"]) for k in range(2)]
+        entries = read_pid_file(tmp_path / "pids")
+        assert entries == [(c.proc.pid, start_time(c.proc.pid)) for c in children]
+        assert all(alive(*entry) for entry in entries)
+    finally:
+        procs.stop_all(5.0)
+
+
+def test_the_reaper_kills_only_the_processes_it_was_given(tmp_path: Path) -> None:
+    """A listed pid whose process started at another time than listed (the pid was
+    reused by then) is left alone; the listed process itself is killed."""
+    listed = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    reused = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    try:
+        started = start_time(listed.pid)
+        wrong = start_time(reused.pid) - 1  # type: ignore[operator]
+        assert started is not None
+        killed = reap([(listed.pid, started), (reused.pid, wrong)], grace=0.2)
+        assert killed == [listed.pid]
+        assert listed.wait(10) == -signal.SIGKILL
+        assert reused.poll() is None
+    finally:
+        for proc in (listed, reused):
+            proc.kill()
+            proc.wait()
+
+
+#: A launcher stand-in: starts a child through a ProcessSet from a thread (the launcher
+#: runs threads), says its pid, and waits to be killed.
+PARENT = """
+import sys, threading, time
+from pathlib import Path
+from aes_ros.ros.launch.processes import ProcessSet
+procs = ProcessSet(Path(sys.argv[1]))
+threading.Thread(target=time.sleep, args=(60,), daemon=True).start()
+print(procs.start("sleep", ["sleep", "60"]).proc.pid, flush=True)
+time.sleep(60)
+"""
+
+
+@pytest.mark.skipif(not die_with_parent(), reason="no setpriv with --pdeathsig")
+def test_children_of_a_killed_parent_get_sigterm(tmp_path: Path) -> None:
+    parent = subprocess.Popen(
+        [sys.executable, "-c", PARENT, str(tmp_path)], stdout=subprocess.PIPE, text=True
+    )
+    assert parent.stdout is not None
+    child = int(parent.stdout.readline())
+    started = start_time(child)
+    assert started is not None and alive(child, started)
+    parent.kill()
+    parent.wait()
+    deadline = time.monotonic() + 10.0
+    while alive(child, started) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if alive(child, started):
+        os.kill(child, signal.SIGKILL)
+        pytest.fail("the child outlived its killed parent")

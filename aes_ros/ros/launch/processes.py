@@ -7,7 +7,9 @@ ROS process, stop it with SIGINT, SIGKILL it if it hangs, clean up after it").
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
+import shutil
 import signal
 import subprocess
 import time
@@ -83,8 +85,10 @@ class ProcessSet:
     """Child processes, each in its own session/process group, logging to
     ``log_dir/<name>.log`` (appended to, so a restarted process keeps one log).
 
-    With ``pid_file`` the pids of the live children are kept in that file (one per
-    line, rewritten at every start) for :mod:`aes_ros.ros.launch.reaper`. ``env_for``
+    Each child gets SIGTERM from the kernel when the thread that started it dies
+    (:func:`die_with_parent`). With ``pid_file`` the live children are kept in that
+    file (a line ``<pid> <start time>`` each, rewritten at every start) for
+    :mod:`aes_ros.ros.launch.reaper`. ``env_for``
     holds what differs from ``env`` for a process of a given name, at every start of it
     (e.g. the recorder as a discovery server's super client).
     """
@@ -106,20 +110,21 @@ class ProcessSet:
         with open(log, "a") as fh:
             start = fh.tell()
             proc = subprocess.Popen(
-                argv,
+                [*die_with_parent(), *argv],
                 env={**self.env, **self.env_for.get(name, {})},
                 stdin=subprocess.DEVNULL,
                 stdout=fh,
                 stderr=subprocess.STDOUT,
                 start_new_session=True,
-                preexec_fn=_die_with_parent,
             )
         child = Child(name, argv, proc, log, start)
         self.children.append(child)
         if self.pid_file is not None:
-            live = [str(c.proc.pid) for c in self.children if c.proc.poll() is None]
+            live = [c.proc.pid for c in self.children if c.proc.poll() is None]
+            started = {pid: start_time(pid) for pid in live}  # not reaped yet: still there
+            lines = "".join(f"{pid} {t}\n" for pid, t in started.items() if t is not None)
             temporary = self.pid_file.with_name("." + self.pid_file.name + ".tmp")
-            temporary.write_text("\n".join(live) + "\n")
+            temporary.write_text(lines)
             os.replace(temporary, self.pid_file)
         return child
 
@@ -185,14 +190,32 @@ class ProcessSet:
         return f"{len(codes) - len(killed)} of {len(codes)} processes stopped cleanly"
 
 
-def _die_with_parent() -> None:
-    """In the child before exec: get SIGTERM if the parent dies (Linux), so that
-    even a SIGKILLed launcher leaves no orphans behind."""
-    with contextlib.suppress(Exception):
-        import ctypes
+@functools.cache
+def die_with_parent() -> tuple[str, ...]:
+    """The command prefix that makes a child get SIGTERM when its parent dies (Linux's
+    parent-death signal), so that even a SIGKILLed launcher leaves no orphans behind:
+    util-linux's ``setpriv``, one exec more, since a launcher runs threads and a
+    ``preexec_fn`` may deadlock in a child forked from one. Empty where there is no
+    ``setpriv`` with ``--pdeathsig``: then the reaper SIGKILLs the orphans."""
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        return ()
+    try:
+        usage = subprocess.run([setpriv, "--help"], capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return ()
+    return (setpriv, "--pdeathsig", "TERM", "--") if "--pdeathsig" in usage.stdout else ()
 
-        PR_SET_PDEATHSIG = 1
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+
+def start_time(pid: int) -> int | None:
+    """When process ``pid`` started, in clock ticks since boot (``/proc/<pid>/stat``
+    field 22), or None if there is no such process: with the pid, it names one process
+    (a pid alone may be another process's by now)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return int(stat.rsplit(")", 1)[1].split()[19])
 
 
 #: The Fast DDS profile of the processes a launch starts (faster rediscovery).

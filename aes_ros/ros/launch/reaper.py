@@ -3,11 +3,13 @@
 The launcher starts it first, in a session of its own, with a pipe as its
 standard input, and never writes to the pipe. When the launcher exits (cleanly
 or killed with SIGKILL) the pipe closes and this process wakes up: it waits up
-to ``--grace`` seconds for the node processes listed in ``PIDS_FILE`` (one pid
-per line; they get SIGTERM from the kernel when their parent dies and shut down
-cleanly), SIGKILLs what is left, and removes the Fast DDS shared-memory files
-they left in the launcher's ROS domain
-(:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`).
+to ``--grace`` seconds for the node processes listed in ``PIDS_FILE`` (a line
+``<pid> <start time>`` each; they get SIGTERM from the kernel when their parent
+dies and shut down cleanly), SIGKILLs the process groups of those left, and
+removes the Fast DDS shared-memory files they left in the launcher's ROS domain
+(:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`). A pid whose
+process started at another time than listed is another process's by now: it is
+left alone.
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import sys
 import time
 from pathlib import Path
 
-from aes_ros.ros.launch.processes import ros_domain
+from aes_ros.ros.launch.processes import ros_domain, start_time
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 #: Seconds the reaper waits for live peers (a ``ros2 topic echo``, a test's probe) to let
@@ -31,13 +33,48 @@ from aes_ros.ros.launch.shared_memory import clean_shared_memory
 SETTLE = 10.0
 
 
-def alive(pid: int) -> bool:
-    """True if ``pid`` runs and is not a zombie."""
+def alive(pid: int, started: int) -> bool:
+    """True if ``pid`` is still the process that started at ``started`` (clock ticks
+    since boot) and is not a zombie."""
     try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
+        fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
     except OSError:
         return False
-    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+    return fields[0] != "Z" and int(fields[19]) == started
+
+
+def read_pid_file(path: Path) -> list[tuple[int, int]]:
+    """The (pid, start time) pairs of a pid file; lines that are not two numbers are
+    skipped (a pid without its start time cannot be told from a reused one)."""
+    try:
+        lines = path.read_text().splitlines()
+    except OSError:
+        return []
+    entries = []
+    for line in lines:
+        words = line.split()
+        if len(words) == 2 and all(word.isdigit() for word in words):
+            entries.append((int(words[0]), int(words[1])))
+    return entries
+
+
+def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
+    """Wait up to ``grace`` s for the processes of ``entries`` (pid, start time) to
+    exit, then SIGKILL the process groups of those still running; returns their pids.
+    A pid running another process than the one listed is left alone (and said so)."""
+    deadline = time.monotonic() + grace
+    while any(alive(*entry) for entry in entries) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    killed = []
+    for pid, started in entries:
+        if alive(pid, started):
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.killpg(pid, signal.SIGKILL)
+                killed.append(pid)
+        elif (now := start_time(pid)) is not None:
+            print(f"reaper: pid {pid} is another process now (started at {now}, "
+                  f"not {started}): left alone", flush=True)  # fmt: skip
+    return killed
 
 
 def start_reaper(pid_file: Path, log: Path) -> int:
@@ -64,17 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C meant for the launcher
     while os.read(sys.stdin.fileno(), 4096):  # until the launcher's end of the pipe closes
         pass
-    try:
-        pids = [int(p) for p in args.pids.read_text().split()]
-    except (OSError, ValueError):
-        pids = []
-    deadline = time.monotonic() + args.grace
-    while any(alive(p) for p in pids) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    for pid in pids:
-        if alive(pid):
-            with contextlib.suppress(ProcessLookupError, PermissionError):
-                os.killpg(pid, signal.SIGKILL)
+    reap(read_pid_file(args.pids), args.grace)
     clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE)
     return 0
 
