@@ -58,6 +58,7 @@ case $SOURCE in poses|odom) ;; *) echo "$0: -x: poses or odom, got '$SOURCE'" >&
 case $MODE in kinematic|dynamic) ;; *) echo "$0: -m: kinematic or dynamic, got '$MODE'" >&2; exit 2 ;; esac
 case $RTF in *[!0-9.]*|'') echo "$0: -r: need a number >= 0, got '$RTF'" >&2; exit 2 ;; esac
 case $RTF in *.*) ;; *) RTF=$RTF.0 ;; esac  # a ROS double needs a decimal point
+case $SEED in ''|*[!0-9]*) echo "$0: -e: need a whole number >= 0, got '$SEED'" >&2; exit 2 ;; esac
 case $DISCOVERY in auto|simple|server) ;; *) echo "$0: -d: auto, simple or server, got '$DISCOVERY'" >&2; exit 2 ;; esac
 if [ -n "$SERVER" ] && [ "$DISCOVERY" = simple ]; then
     echo "$0: -a: simple discovery uses no server" >&2; exit 2
@@ -78,21 +79,26 @@ if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE:-}${FASTDDS_DEFAULT_PROFILES_FILE:-}" 
     export FASTRTPS_DEFAULT_PROFILES_FILE
 fi
 
-# The robot count as the scenario sees it (0 = the scenario's own formation).
-if [ "$ROBOTS" -eq 0 ]; then
-    ROBOTS=$("$BIN/python" -c "from aes_ros import scenario; \
-print(len(scenario.load('$SETUP').nominal_positions()))" 2>/dev/null || true)
-    [ -n "$ROBOTS" ] || { echo "$0: cannot read scenario '$SETUP'" >&2; exit 2; }
-    NUM=0
-else
-    NUM=$ROBOTS
-fi
-# The host count of launch's layout auto (aes_ros.ros.launch.plan.auto_layout).
+# The robot count as the scenario sees it (0 = the scenario's own formation) and the
+# layout auto of launch (aes_ros.ros.launch.plan.auto_layout). Every user value reaches
+# Python as an argument (sys.argv), never as part of its code.
+SCENARIO_INFO='
+import sys
+from aes_ros import scenario
+from aes_ros.params import ParameterError
+from aes_ros.ros.launch.plan import auto_layout
+setup, robots = sys.argv[1], int(sys.argv[2])
+try:
+    sc = scenario.load(setup)
+except ParameterError as exc:
+    sys.exit(f"{sys.argv[3]}: -s: {exc}")
+robots = robots or len(sc.nominal_positions())
+print(robots, auto_layout(robots, sc.dt))
+'
+INFO=$("$BIN/python" -c "$SCENARIO_INFO" "$SETUP" "$ROBOTS" "$0") || exit 2
+NUM=$ROBOTS
+read -r ROBOTS LAYOUT <<<"$INFO"
 if [ "$HOSTS" = auto ]; then
-    LAYOUT=$("$BIN/python" -c "from aes_ros import scenario; \
-from aes_ros.ros.launch.plan import auto_layout; \
-print(auto_layout($ROBOTS, scenario.load('$SETUP').dt))" 2>/dev/null || true)
-    [ -n "$LAYOUT" ] || { echo "$0: cannot read scenario '$SETUP'" >&2; exit 2; }
     HOSTS=1
     [ "$LAYOUT" = single ] || HOSTS=$(nproc 2>/dev/null || echo 1)
 fi

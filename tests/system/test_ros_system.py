@@ -341,6 +341,23 @@ def test_start_swarm_script_runs_and_stops_cleanly(spawn, ros_env, probe) -> Non
     assert_no_orphans(ros_env)
 
 
+def test_start_swarm_script_runs_no_code_given_as_a_setup_name(spawn, ros_env, tmp_path) -> None:
+    """A setup name holding quotes, Python and ``$(...)`` is only a name: the script
+    refuses it (exit 2, naming it) before it starts any process, and none of it runs."""
+    spawn.env = {**spawn.env, "PATH": f"{BIN}{os.pathsep}{ros_env.get('PATH', '')}"}
+    python, shell = tmp_path / "python_ran", tmp_path / "shell_ran"
+    setup = f"x'+__import__('pathlib').Path('{python}').touch().__str__()+'$(touch {shell})"
+    script = spawn.start(
+        "bash", str(REPO / "scripts" / "start_swarm.sh"), "-s", setup, "-n", "4",
+        name="start_swarm",
+    )  # fmt: skip
+    assert script.wait(60) == 2
+    log = spawn.log(script).read_text()
+    assert "start_swarm.sh: -s: " in log and setup in log, log
+    assert "starting" not in log and "Traceback" not in log, log
+    assert not python.exists() and not shell.exists()
+
+
 def test_start_swarm_script_picks_the_launchers_host_count(spawn, ros_env, probe) -> None:
     """Without -k the script runs as many robot hosts as `aes-swarm launch`'s layout
     auto would: 16 robots at 20 Hz are one host, whatever the number of cores."""
