@@ -46,7 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from bench_faults import pid_of
 from bench_ros import cpu_seconds
 from helpers.browser import headless_chromium, page_state, unavailable
-from helpers.dashboard import URL, socket_url
+from helpers.dashboard import origin_of, printed_url, socket_url
 
 from aes_ros import scenario
 from aes_ros.ros import interface as names
@@ -59,9 +59,9 @@ TARGET_CPU_PCT, TARGET_FPS_1000 = 10.0, 20.0
 def wait_url(log: Path, proc: subprocess.Popen, timeout: float) -> str:
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        found = URL.search(log.read_text())
+        found = printed_url(log.read_text())
         if found:
-            return found.group(1)
+            return found
         if proc.poll() is not None:
             break
         time.sleep(0.2)
@@ -72,7 +72,7 @@ class ByteCounter:
     """A WebSocket viewer in a background thread that counts what it receives."""
 
     def __init__(self, url: str) -> None:
-        self.url = socket_url(url)
+        self.url, self.origin = socket_url(url), origin_of(url)
         self.bytes = 0
         self.frames = 0
         self.ws: aiohttp.ClientWebSocketResponse | None = None
@@ -81,7 +81,10 @@ class ByteCounter:
         self.task = asyncio.run_coroutine_threadsafe(self._read(), self.loop)
 
     async def _read(self) -> None:
-        async with aiohttp.ClientSession() as session, session.ws_connect(self.url) as ws:
+        async with (
+            aiohttp.ClientSession() as session,
+            session.ws_connect(self.url, origin=self.origin) as ws,
+        ):
             self.ws = ws
             async for message in ws:
                 self.bytes += len(message.data)

@@ -20,14 +20,20 @@ from helpers.ros_env import Processes, wait_for
 URL = re.compile(rf"{names.DASHBOARD_READY} (http://\S+)")
 
 
+def printed_url(text: str) -> str | None:
+    """The dashboard's URL with its token in ``text`` (a process's output), as printed for
+    its owner; None if not there (yet). The node's own log line has no token."""
+    return next((m.group(1) for m in URL.finditer(text) if "?token=" in m.group(1)), None)
+
+
 def dashboard_url(spawn: Processes, proc: subprocess.Popen, timeout: float = 60.0) -> str:
-    """The URL the process ``proc`` (a launch with ``--dashboard`` or ``aes-swarm
-    dashboard``) printed once its dashboard listens."""
+    """The URL with the token that the process ``proc`` (a launch with ``--dashboard``,
+    ``aes-swarm dashboard`` or ``aes-dashboard``) printed once its dashboard listens."""
     log = spawn.log(proc)
-    found = wait_for(lambda: URL.search(log.read_text()) or proc.poll() is not None, timeout)
-    match = URL.search(log.read_text())
-    assert found and match, f"no dashboard URL:\n{log.read_text()[-3000:]}"
-    return match.group(1)
+    found = wait_for(lambda: printed_url(log.read_text()) or proc.poll() is not None, timeout)
+    url = printed_url(log.read_text())
+    assert found and url, f"no dashboard URL:\n{log.read_text()[-3000:]}"
+    return url
 
 
 def launch_with_dashboard(
@@ -53,14 +59,21 @@ def socket_url(url: str) -> str:
     return "ws" + base.removeprefix("http").rstrip("/") + "/ws" + (f"?{query}" if query else "")
 
 
+def origin_of(url: str) -> str:
+    """The ``Origin`` the dashboard's own page at ``url`` sends (127.0.0.1, as :func:`local`)."""
+    return re.match(r"^http://[^/?]+", local(url)).group(0)
+
+
 class Viewers:
     """``count`` WebSocket viewers of one dashboard, each in its own connection, read
     in a background event loop. ``frames[v]`` holds (wall time, frame) of viewer v
     as they arrive; :meth:`send` sends a control message as viewer 0 and returns the
-    server's result."""
+    server's result. They say they come from the dashboard's own page (``Origin``), as a
+    browser's would."""
 
     def __init__(self, url: str, count: int = 1) -> None:
         self.url = socket_url(url)
+        self.origin = origin_of(url)
         self.frames: list[list[tuple[float, dict[str, Any]]]] = [[] for _ in range(count)]
         self.sheets: list[dict[str, Any]] = []
         self.results: queue.Queue[dict[str, Any]] = queue.Queue()
@@ -80,7 +93,7 @@ class Viewers:
     async def _open(self, count: int) -> None:
         self.session = aiohttp.ClientSession()
         for _ in range(count):
-            self.sockets.append(await self.session.ws_connect(self.url))
+            self.sockets.append(await self.session.ws_connect(self.url, origin=self.origin))
         self.readers = [self.loop.create_task(self._read(v)) for v in range(count)]
 
     async def _read(self, v: int) -> None:
