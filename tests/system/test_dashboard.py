@@ -47,7 +47,7 @@ def heading(probe, t0: float, t1: float) -> np.ndarray:
 
 def test_a_viewer_watches_and_steers_the_swarm(spawn, probe, tmp_path):
     launcher, url = launch_with_dashboard(spawn, tmp_path / "out", N)
-    assert url.startswith("http://127.0.0.1:") and "token" not in url
+    assert url.startswith("http://127.0.0.1:") and "?token=" in url  # control needs it
     probe.sample_poses(N)
     t0 = probe.wait_all_moving()
     viewer = Viewers(url)
