@@ -4,7 +4,8 @@ Examples::
 
     aes-swarm explore pareto                  # docs/explore/pareto/pareto.png, …
     aes-swarm explore noise --workers 2
-    aes-swarm explore robustness --scheduler tcp://head:8786
+    aes-swarm explore robustness --scheduler tls://10.0.0.5:8786 \\
+        --tls-ca ca.pem --tls-cert client.pem --tls-key client-key.pem
     aes-swarm explore perception              # docs/explore/perception/…
     aes-swarm explore ladder                  # docs/explore/ladder/…
 
@@ -33,6 +34,7 @@ import json
 from pathlib import Path
 
 from aes_ros.cli.options import number_type
+from aes_ros.cli.sweep import add_scheduler_options, scheduler_from_args
 
 STUDIES = ("pareto", "noise", "robustness", "perception", "ladder")
 
@@ -46,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "--work", type=Path, default=Path("out/explore"),
         help="the sweeps' tables, kept to resume (default out/explore)",
     )  # fmt: skip
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a Dask cluster")
+    add_scheduler_options(p)
     p.add_argument(
         "--workers", type=number_type(int, 1), default=None, metavar="K",
         help="a local Dask cluster of K workers",
@@ -65,7 +67,8 @@ def run(args: argparse.Namespace) -> int:
         raise SweepSpecError("--scheduler and --workers: give one of them")
     out = args.out if args.out is not None else Path("docs/explore") / args.study
     work = args.work / (f"{args.study}_quick" if args.quick else args.study)
-    where = Where(work, args.scheduler, args.workers, progress=not args.no_progress)
+    cluster = scheduler_from_args(args)
+    where = Where(work, cluster, args.workers, progress=not args.no_progress)
     study = importlib.import_module(f"aes_ros.studies.{args.study}")
     result = study.run(out, where, quick=args.quick)
     print(json.dumps(result, indent=1)[:2000])

@@ -6,7 +6,8 @@ Examples::
     aes-swarm sweep --param d_r=0:2:9 --param robots=25,100,400 --duration 60 --transient 20 \\
         --out out/noise
     aes-swarm sweep --lhs 200 --param alpha=0.01:0.5 --param beta=0.1:5 --param k=log:0.05:5 \\
-        --out out/lhs --scheduler tcp://head:8786
+        --out out/lhs --scheduler tls://10.0.0.5:8786 \\
+        --tls-ca ca.pem --tls-cert client.pem --tls-key client-key.pem
 
 Writes ``runs.csv`` (one row per point and run), ``points.csv`` (per point),
 ``sweep_metrics.png`` and ``sweep.json`` to ``--out``; re-running the same command
@@ -16,6 +17,7 @@ after an interruption skips the points already done (:mod:`aes_ros.sweep.engine`
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from aes_ros.cli.options import (
@@ -25,6 +27,8 @@ from aes_ros.cli.options import (
     number_type,
 )
 from aes_ros.params import PARAMS
+from aes_ros.sweep.cluster import TLS_OPTIONS, Scheduler, scheduler
+from aes_ros.sweep.spec import SweepSpecError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -55,10 +59,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     )  # fmt: skip
     p.add_argument("--seed", type=int, default=0, help="first Monte-Carlo seed (and the LHS's)")
     p.add_argument("--out", type=Path, required=True, help="output directory (resumable)")
-    p.add_argument(
-        "--scheduler", default=None, metavar="ADDRESS",
-        help="run on this Dask cluster (tcp://HOST:8786) instead of the local cores",
-    )  # fmt: skip
+    add_scheduler_options(p)
     p.add_argument(
         "--workers", type=number_type(int, 1), default=None, metavar="K",
         help="run on a local Dask cluster of K worker processes",
@@ -70,12 +71,35 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
+def add_scheduler_options(p: argparse.ArgumentParser) -> None:
+    """``--scheduler`` and its ``--tls-*`` files (:mod:`aes_ros.sweep.cluster`)."""
+    p.add_argument(
+        "--scheduler", default=None, metavar="ADDRESS",
+        help="run on this Dask cluster (tls://HOST:8786 with the --tls-* files, or "
+        "tcp://HOST:8786) instead of the local cores; whoever reaches a scheduler runs code",
+    )  # fmt: skip
+    helps = ("the cluster's CA certificate", "this client's certificate", "its private key")
+    for option, text in zip(TLS_OPTIONS, helps, strict=True):
+        p.add_argument(option, type=Path, default=None, metavar="PEM", help=f"{text} (PEM)")
+
+
+def scheduler_from_args(args: argparse.Namespace) -> Scheduler | None:
+    """The checked :class:`Scheduler` of ``--scheduler`` and ``--tls-*``, or None."""
+    tls = (args.tls_ca, args.tls_cert, args.tls_key)
+    if args.scheduler is None:
+        if any(path is not None for path in tls):
+            raise SweepSpecError("--tls-ca/--tls-cert/--tls-key need --scheduler tls://HOST:PORT")
+        return None
+    return scheduler(args.scheduler, *tls, warn=lambda text: print(text, file=sys.stderr))
+
+
 def run(args: argparse.Namespace) -> int:
     from aes_ros.sweep.engine import Sweep, execute
-    from aes_ros.sweep.spec import SweepSpecError, parse_axis, points
+    from aes_ros.sweep.spec import parse_axis, points
 
     if args.scheduler is not None and args.workers is not None:
         raise SweepSpecError("--scheduler and --workers: give one of them")
+    cluster = scheduler_from_args(args)
     base = load_scenario(args)
     axes = [parse_axis(text) for text in args.param]
     fail = None
@@ -100,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
     summary = execute(
         sweep,
         args.out,
-        scheduler=args.scheduler,
+        scheduler=cluster,
         workers=args.workers,
         points_per_task=args.points_per_task,
         progress=not args.no_progress,

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from aes_ros.scenario import Scenario
+from aes_ros.sweep.cluster import Scheduler
 from aes_ros.sweep.engine import Sweep, execute
 from aes_ros.sweep.spec import Axis
 
@@ -22,7 +23,7 @@ class Where:
     """Where a study's sweeps run and keep their tables (resumable)."""
 
     work: Path
-    scheduler: str | None = None
+    scheduler: str | Scheduler | None = None
     workers: int | None = None
     progress: bool = True
 

@@ -14,7 +14,8 @@ Where the tasks run:
   task's runs over the local cores;
 - ``workers=K``: a local Dask cluster of K worker processes (one thread each, the
   cores shared out among them);
-- ``scheduler="tcp://HOST:8786"``: an existing Dask cluster (``dask scheduler``,
+- ``scheduler="tcp://HOST:8786"`` or a :class:`~aes_ros.sweep.cluster.Scheduler`
+  (``tls://`` with certificates): an existing Dask cluster (``dask scheduler``,
   ``dask worker``); its workers need this package installed. A worker lost mid-sweep
   costs only its tasks, which Dask runs again elsewhere.
 
@@ -37,6 +38,7 @@ from tqdm import tqdm
 
 from aes_ros.scenario import Scenario
 from aes_ros.scenario import defaults as scenario_defaults
+from aes_ros.sweep.cluster import Scheduler
 from aes_ros.sweep.runs import RUN_COLUMNS, Task, make_tasks, run_task
 from aes_ros.sweep.spec import Axis, SweepSpecError
 
@@ -150,7 +152,11 @@ def _write_rows(path: Path, columns: list[str], rows: list[dict[str, Any]]) -> N
 
 
 def results(
-    sweep: Sweep, tasks: list[Task], *, scheduler: str | None = None, workers: int | None = None
+    sweep: Sweep,
+    tasks: list[Task],
+    *,
+    scheduler: str | Scheduler | None = None,
+    workers: int | None = None,
 ) -> Iterator[list[dict[str, Any]]]:
     """The rows of each task as it finishes: here (default), on ``workers`` local
     Dask workers, or on the Dask cluster at ``scheduler``."""
@@ -184,12 +190,13 @@ def local_cluster(workers: int, numba_threads: int | None = None) -> Any:
 
 
 def _dask(
-    sweep: Sweep, tasks: list[Task], scheduler: str | None, workers: int | None
+    sweep: Sweep, tasks: list[Task], scheduler: str | Scheduler | None, workers: int | None
 ) -> Iterator[list[dict[str, Any]]]:
     from dask.distributed import Client, as_completed
 
     if scheduler is not None:
-        client = Client(scheduler, timeout="30s")
+        target = scheduler if isinstance(scheduler, Scheduler) else Scheduler(scheduler)
+        client = target.client()
         cluster = None
     else:
         cluster = local_cluster(int(workers or 1))
@@ -222,7 +229,7 @@ def execute(
     sweep: Sweep,
     out: Path,
     *,
-    scheduler: str | None = None,
+    scheduler: str | Scheduler | None = None,
     workers: int | None = None,
     points_per_task: int = 4,
     progress: bool = True,

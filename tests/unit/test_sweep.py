@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from aes_ros import scenario
-from aes_ros.sweep import engine, runs
+from aes_ros.cli import main
+from aes_ros.sweep import cluster, engine, runs
 from aes_ros.sweep.engine import Sweep, execute
 from aes_ros.sweep.spec import SweepSpecError, parse_axis, points
 
@@ -154,3 +155,71 @@ def test_a_sweep_written_before_a_parameter_existed_resumes_unless_it_is_changed
     changed.base = changed.base.with_overrides({"perception_sigma": 0.01})  # a dataclass
     with pytest.raises(SweepSpecError, match=r"holds another sweep.*scenario"):
         execute(changed, tmp_path, progress=False, say=lambda _: None)
+
+
+@pytest.fixture
+def pems(tmp_path):
+    """Three files where the --tls-* options point (their contents are not read here)."""
+    files = [tmp_path / name for name in ("ca.pem", "client.pem", "client-key.pem")]
+    for path in files:
+        path.write_text("PEM\n")
+    return files
+
+
+def test_a_tls_scheduler_gets_the_users_certificates_and_requires_encryption(pems) -> None:
+    target = cluster.scheduler("tls://10.0.0.5:8786", *pems, warn=pytest.fail)
+    security = target.security()
+    assert security.require_encryption
+    assert (security.tls_ca_file, security.tls_client_cert, security.tls_client_key) == tuple(
+        map(str, pems)
+    )
+    assert cluster.scheduler("tcp://127.0.0.1:8786", warn=pytest.fail).security() is None
+
+
+@pytest.mark.parametrize(
+    ("address", "files", "reason"),
+    [
+        ("tls://10.0.0.5:8786", "", "tls:// needs --tls-ca, --tls-cert, --tls-key"),
+        ("tls://10.0.0.5:8786", "ca", "--tls-cert, --tls-key: TLS needs all three"),
+        ("tls://10.0.0.5:8786", "ca cert", "--tls-key: TLS needs all three"),
+        ("tls://10.0.0.5:8786", "ca cert nokey", "--tls-key .*missing.pem: no such file"),
+        ("tcp://10.0.0.5:8786", "ca cert key", "the --tls-\\* files need a tls:// address"),
+        ("ucx://10.0.0.5:8786", "", "need tcp://HOST:PORT or tls://HOST:PORT"),
+        ("tls://10.0.0.5", "ca cert key", "need tcp://HOST:PORT or tls://HOST:PORT"),
+        ("tcp://10.0.0.5:port", "", "need tcp://HOST:PORT or tls://HOST:PORT"),
+    ],
+)
+def test_bad_scheduler_options_name_the_option(pems, tmp_path, address, files, reason) -> None:
+    paths = {"ca": pems[0], "cert": pems[1], "key": pems[2], "nokey": tmp_path / "missing.pem"}
+    given = [paths[name] for name in files.split()]
+    args = [*given, *[None] * (3 - len(given))]
+    with pytest.raises(SweepSpecError, match=reason):
+        cluster.scheduler(address, *args, warn=pytest.fail)
+
+
+@pytest.mark.parametrize(
+    ("address", "warned"),
+    [
+        ("tcp://10.0.0.5:8786", True),
+        ("head:8786", True),
+        ("tcp://[::1]:8786", False),
+        ("tcp://127.0.0.1:8786", False),
+        ("localhost:8786", False),
+    ],
+)
+def test_plain_tcp_to_another_host_warns_that_reaching_it_runs_code(address, warned) -> None:
+    said: list[str] = []
+    assert cluster.scheduler(address, warn=said.append).address == address
+    assert bool(said) == warned
+    if warned:
+        assert "anyone who reaches it runs code" in said[0] and "tls://" in said[0]
+
+
+def test_the_cli_refuses_tls_options_with_exit_2_before_any_work(tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    base = ["sweep", "--param", "alpha=0.1:0.2:2", "--out", str(out), "--no-progress"]
+    assert main([*base, "--scheduler", "tls://127.0.0.1:1"]) == 2
+    assert "tls:// needs --tls-ca, --tls-cert, --tls-key" in capsys.readouterr().err
+    assert main([*base, "--tls-ca", str(tmp_path / "ca.pem")]) == 2
+    assert "need --scheduler tls://HOST:PORT" in capsys.readouterr().err
+    assert not out.exists()
