@@ -31,6 +31,7 @@ from rclpy.parameter import Parameter
 from std_srvs.srv import SetBool
 
 from aes_ros import metrics, scenario, simulator
+from aes_ros.previous_run import LAUNCH_OUTPUTS
 from aes_ros.report import load_trajectory
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import read_bag
@@ -70,7 +71,8 @@ def direction_deg(v: np.ndarray) -> float:
 def test_linear_moves_west_orders_and_records_a_bag(spawn, ros_env, tmp_path) -> None:
     """16 robots, linear setup, layout single, neighbours from /swarm/poses: the
     centroid moves west, heading order > 0.9; the outputs of ``simulate`` are
-    written; the MCAP bag reads back with every recorded topic."""
+    written; the MCAP bag reads back with every recorded topic; the same launch again is
+    refused, the run's files intact."""
     out, bag = tmp_path / "out", tmp_path / "run.mcap"
     rc, log = run_launch(
         spawn, "--setup", "linear", "--robots", "16", "--layout", "single", *FAST,
@@ -106,6 +108,26 @@ def test_linear_moves_west_orders_and_records_a_bag(spawn, ros_env, tmp_path) ->
     assert counts["/mona_0/cmd_vel"] > 100 and counts["/swarm/poses"] > 100
     assert cmd is not None and math.isfinite(cmd.linear.x) and cmd.linear.y == 0.0
     assert_no_orphans(ros_env)
+    check_a_second_launch_is_refused(spawn, out, bag)
+
+
+def check_a_second_launch_is_refused(spawn, out: Path, bag: Path) -> None:
+    """The same command again: refused before it starts anything (exit code 2, the
+    directory and ``--overwrite`` named), the first run's files as they were; every
+    file the launch wrote into ``out`` is one the check looks for."""
+    written = {p.name for p in out.iterdir()}
+    assert written <= set(LAUNCH_OUTPUTS) | {bag.name}, written - set(LAUNCH_OUTPUTS)
+    files = [bag, *sorted(p for p in out.rglob("*") if p.is_file())]
+    before = {p: p.read_bytes() for p in files}
+    again = spawn.start(
+        *launch_cmd("--setup", "linear", "--robots", "16", "--out", str(out), "--record", str(bag)),
+        name="second_launch",
+    )  # fmt: skip
+    assert again.wait(60) == 2
+    log = spawn.log(again).read_text()
+    assert f"--out {out} holds an earlier run (run.json," in log and "--overwrite" in log, log
+    assert not any(line.startswith("launch:") for line in log.splitlines()), log
+    assert {p: p.read_bytes() for p in files} == before
 
 
 def test_ros_system_equals_offline_simulator(spawn, ros_env, tmp_path) -> None:
