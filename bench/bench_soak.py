@@ -306,6 +306,7 @@ def soak(
         str(BIN / "aes-swarm"), "launch", "--setup", "combined", "--robots", str(args.robots),
         "--set", f"dt={1.0 / args.rate:g}", "--duration", str(args.duration),
         "--record", str(bag), "--dashboard", "0", "--out", str(run_dir),
+        "--overwrite",  # the bench's own directory: every run of the bench replaces the last
     ]  # fmt: skip
     if args.bag_split != "none":
         cmd += ["--bag-split", args.bag_split, "--bag-keep", str(args.bag_keep)]
