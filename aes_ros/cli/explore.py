@@ -23,7 +23,10 @@ Examples::
   a time, and take about 40 minutes).
 
 The sweeps' tables go to ``--work`` (resumable: an interrupted study goes on where
-it stopped), the figures, CSV and JSON to ``--out``.
+it stopped), the figures, CSV and JSON to ``--out``. Unlike ``launch`` or ``simulate``,
+an earlier study's ``--out`` is replaced without ``--overwrite``: it holds the figures of
+docs/explore, regenerated whole from the tables (and kept in git), and the runs
+themselves, in ``--work``, are resumed, not lost.
 """
 
 from __future__ import annotations

@@ -3,6 +3,10 @@
 Example::
 
     aes-swarm study --out docs/study                       # default vs tuned, weight variants
+
+Unlike ``launch``, ``simulate`` and ``optimize`` it replaces what an earlier study left
+in ``--out`` without ``--overwrite``: its outputs are the figures and tables of
+docs/tuning.md, regenerated whole by this command (and kept in git).
 """
 
 from __future__ import annotations

@@ -168,7 +168,8 @@ def launch_run(
     rung: Rung, setup: str, gains: GainSet, seed: int, directory: Path, domain: int
 ) -> Path:
     """Run one ROS rung (``aes-swarm launch``) into ``directory`` unless a finished run
-    is there already; its log in ``directory/ladder.log``."""
+    is there already (an unfinished one, cut short, is replaced: ``--overwrite``); its
+    log in ``directory/ladder.log``."""
     if (directory / "done").exists():
         return directory
     directory.mkdir(parents=True, exist_ok=True)
@@ -177,7 +178,7 @@ def launch_run(
         "--robots", str(ROBOTS), "--seed", str(seed), "--on-failure", "stop",
         "--set", f"alpha={gains.alpha}", "--set", f"beta={gains.beta}", "--set", f"k={gains.k}",
         "--set", "arena=" + ",".join(f"{v:g}" for v in ARENA),
-        *rung.launch, "--out", str(directory),
+        *rung.launch, "--out", str(directory), "--overwrite",
     ]  # fmt: skip
     env = {**os.environ, "ROS_DOMAIN_ID": str(domain)}
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
