@@ -3,7 +3,11 @@ installed by scripts/setup.sh), driven by Selenium: nothing is downloaded at run
 
 from __future__ import annotations
 
+import contextlib
+import http.server
 import shutil
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -59,3 +63,32 @@ def page_state(driver: Any) -> dict[str, Any]:
         " drawMs: s.drawMs, drawn: s.drawn, connected: s.connected, n: s.frame && s.frame.n,"
         " results: s.results};"
     )
+
+
+@contextlib.contextmanager
+def page_server(html: str) -> Iterator[str]:
+    """Serve ``html`` at ``http://127.0.0.1:<a free port>/`` (any path) from a thread of
+    this process until the block ends; yields that URL. A page of another origin than
+    the dashboard's, as any web site or local program could put in the user's browser."""
+    body = html.encode()
+
+    class Page(http.server.BaseHTTPRequestHandler):
+        def do_GET(self) -> None:
+            self.send_response(200)
+            self.send_header("Content-Type", "text/html; charset=utf-8")
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args: Any) -> None:
+            pass
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Page)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(5)

@@ -6,7 +6,12 @@ real swarm, checked by a ROS probe. Each test saves screenshots in its temporary
   α = −5 typed in the page is refused with the node's reason and α stays; the
   disable button stops the robots;
 - bound to a non-loopback address, the page without the token gets 401 and cannot
-  control anything; with the token in the URL it can.
+  control anything; with the token in the URL it can;
+- a page of another origin (another port of 127.0.0.1) in the same browser, after the
+  owner opened the dashboard (so its cookie is there), tries to steer the swarm over
+  WebSockets, without, with a guessed and even with the real token, and to frame the
+  dashboard: every WebSocket is refused before it opens, the frame stays empty, and
+  ``/swarm/desired_velocity`` and ``/swarm/enabled`` do not change.
 """
 
 from __future__ import annotations
@@ -21,9 +26,10 @@ import pytest
 from geometry_msgs.msg import Twist, Vector3
 from helpers import browser
 from helpers.dashboard import dashboard_url, launch_with_dashboard, local
+from std_msgs.msg import Bool
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.qos import COMMAND
+from aes_ros.ros.qos import COMMAND, LATCHED
 
 WHY_NOT = browser.unavailable()
 pytestmark = pytest.mark.skipif(WHY_NOT is not None, reason=str(WHY_NOT))
@@ -228,3 +234,69 @@ def test_off_loopback_the_page_needs_the_token(spawn, probe, chromium, tmp_path)
     east = commands[-1].twist
     assert east.linear.x > 0.8 and abs(east.linear.y) < 0.05
     chromium.screenshot("with-token")
+
+
+#: A page of another origin that tries to steer the dashboard at DASHBOARD (host:port)
+#: with each WebSocket URL and to show it in a frame (the owner's token: TOKEN).
+FOREIGN_PAGE = """<!doctype html><html><body><iframe id="framed" src="http://DASHBOARD/?token=TOKEN"
+ width="400" height="300"></iframe><script>
+const tries = ["ws://DASHBOARD/ws", "ws://DASHBOARD/ws?token=guessed-0123456789abcdef",
+               "ws://DASHBOARD/ws?token=TOKEN", "ws://localhost:PORT/ws?token=TOKEN"];
+window.attack = {opened: [], messages: [], closed: 0};
+for (const url of tries) {
+  const ws = new WebSocket(url);
+  ws.onopen = () => {
+    window.attack.opened.push(url);
+    ws.send(JSON.stringify({type: "enable", enabled: false}));
+    ws.send(JSON.stringify({type: "drive", direction: [0, -1], omega: 1.5}));
+  };
+  ws.onmessage = (event) => window.attack.messages.push(event.data);
+  ws.onclose = () => { window.attack.closed += 1; };
+}
+</script></body></html>"""
+
+
+def test_a_page_of_another_origin_cannot_steer_the_swarm(spawn, probe, chromium, tmp_path):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+
+    launcher, url = launch_with_dashboard(spawn, tmp_path / "out", 4)
+    probe.sample_poses(4)
+    enabled = probe.record(Bool, names.ENABLED, LATCHED, lambda m: m.data)
+    probe.wait(lambda: probe.desired and enabled, 60.0, "the swarm's command and enable state")
+    before = (probe.desired[-1].twist, enabled[-1])
+    # the owner's page is open in this browser: its cookie is there for 127.0.0.1
+    chromium.get(url)
+    probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
+    address = re.match(r"http://([^/]+)/", url).group(1)
+    token = url.split("token=")[1]
+    page = FOREIGN_PAGE.replace("DASHBOARD", address).replace("TOKEN", token)
+    with browser.page_server(page.replace("PORT", address.split(":")[1])) as foreign:
+        chromium.get(foreign)
+        attack = lambda: chromium.execute_script("return window.attack;")  # noqa: E731
+        probe.wait(lambda: attack()["closed"] == 4, 10.0, "the four WebSockets refused")
+        chromium.screenshot("foreign-page")
+        assert attack()["opened"] == [] and attack()["messages"] == [], attack()
+        chromium.switch_to.frame(chromium.find_element(By.ID, "framed"))
+        assert browser.page_state(chromium) is None  # frame-ancestors 'none': no dashboard
+        chromium.switch_to.default_content()
+    time.sleep(2.0)  # anything that got through would have reached the supervisor by now
+    assert (probe.desired[-1].twist, enabled[-1]) == before
+    assert all(m.twist == before[0] for m in probe.desired)
+    dashboard_log = (tmp_path / "out" / "logs" / f"{names.DASHBOARD_NODE}.log").read_text()
+    assert "refused a request from another page" in dashboard_log
+
+    # the owner's page, opened with the printed URL, still steers
+    chromium.get(url)
+    probe.wait(lambda: (browser.page_state(chromium) or {}).get("connected"), 10.0, "connected")
+    dial = chromium.find_element(By.ID, "dial")
+    ActionChains(chromium).move_to_element_with_offset(dial, 0, -65).click().perform()
+    try:
+        probe.wait(
+            lambda: probe.desired[-1].twist.linear.y > 0.8, 10.0, "/swarm/desired_velocity north"
+        )
+    except BaseException:
+        print("page:", browser.page_state(chromium), messages(chromium, "error"))
+        raise
+    launcher.send_signal(signal.SIGINT)
+    assert launcher.wait(60) == 0
