@@ -66,9 +66,9 @@ class ParamSpec:
         """Return ``value`` converted to this parameter's type, or raise ParameterError."""
         try:
             return self._convert(value)
-        except (TypeError, ValueError) as exc:
+        except (TypeError, ValueError, OverflowError) as exc:
             raise ParameterError(
-                f"{self.name}: {value!r} is not allowed ({exc}); expected {self.allowed()}"
+                f"{self.name}: {_show(value)} is not allowed ({exc}); expected {self.allowed()}"
             ) from None
 
     def _convert(self, value: Any) -> Any:
@@ -90,7 +90,7 @@ class ParamSpec:
         if self.kind in ("vec2", "center"):
             if isinstance(value, str):
                 value = [v for v in value.replace("[", "").replace("]", "").split(",") if v]
-            if isinstance(value, bool) or len(value) != 2:
+            if not isinstance(value, list | tuple) or len(value) != 2:
                 raise ValueError("need exactly two numbers")
             return (self._number(value[0], float), self._number(value[1], float))
         if self.kind == "int":
@@ -104,7 +104,7 @@ class ParamSpec:
             return ()
         if isinstance(value, str):
             value = [v for v in value.replace("[", "").replace("]", "").split(",") if v.strip()]
-        if isinstance(value, bool | int | float) or len(value) not in (0, 4):
+        if not isinstance(value, list | tuple) or len(value) not in (0, 4):
             raise ValueError("need four numbers or none")
         if len(value) == 0:
             return ()
@@ -119,14 +119,23 @@ class ParamSpec:
         if typ is int:
             number = int(value) if not isinstance(value, str) else int(value.strip())
         else:
-            number = float(value)
-        if not math.isfinite(number):
-            raise ValueError("not finite")
+            try:
+                number = float(value)
+            except OverflowError:  # an integer beyond float's range
+                raise ValueError("too large") from None
+            if not math.isfinite(number):
+                raise ValueError("not finite")
         if (self.low is not None and number < self.low) or (
             self.high is not None and number > self.high
         ):
             raise ValueError("out of range")
         return number
+
+
+def _show(value: Any, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for a message that names it."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 def _p(

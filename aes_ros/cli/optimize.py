@@ -16,11 +16,14 @@ import time
 from pathlib import Path
 
 from aes_ros.cli.options import (
+    MAX_EVALS,
     add_monte_carlo_option,
     add_scenario_options,
     check_tcacs_options,
     load_scenario,
+    number_type,
     scenario_label,
+    seed_type,
 )
 from aes_ros.optim import tcacs, tuning
 from aes_ros.params import ParameterError
@@ -39,7 +42,12 @@ FLAGS = {
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     evals, paper = tcacs.DEFAULT_MAX_EVALS, tcacs.PAPER_OPTIONS
-    p.add_argument("--evals", type=int, default=evals, help=f"evaluation budget (default {evals})")
+    p.add_argument(
+        "--evals",
+        type=number_type(int, 1, MAX_EVALS),
+        default=evals,
+        help=f"evaluation budget (default {evals})",
+    )
     add_monte_carlo_option(p)
     p.add_argument("--w1", type=float, default=None, help="weight of F (default 1/N)")
     p.add_argument("--w2", type=float, default=-1.0, help="weight of psi (default -1)")
@@ -50,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="alpha=LO:HI,beta=LO:HI,k=LO:HI",
         help=f"search box; names left out keep the default ({default_box})",
     )
-    p.add_argument("--seed", type=int, default=0, help="seeds TCACS and picks the MC seeds")
+    p.add_argument("--seed", type=seed_type, default=0, help="seeds TCACS and picks the MC seeds")
     ants, weighting = paper["n_ants"], paper["weighting"]
     p.add_argument("--ants", type=int, default=ants, help=f"ants per iteration ({ants})")
     p.add_argument(

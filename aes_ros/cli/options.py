@@ -42,7 +42,7 @@ def add_scenario_options(p: argparse.ArgumentParser) -> None:
         help="override a parameter (repeatable); see `aes-swarm params`",
     )
     p.add_argument(
-        "--robots", type=number_type(int, 1), default=None,
+        "--robots", type=number_type(int, 1, MAX_ROBOTS), default=None,
         help="number of robots N: a near-square grid (default: the scenario's formation)",
     )  # fmt: skip
 
@@ -70,7 +70,7 @@ def add_monte_carlo_option(p: argparse.ArgumentParser) -> None:
     """``--mc``: Monte-Carlo runs per candidate, with common random numbers."""
     p.add_argument(
         "--mc",
-        type=number_type(int, 1),
+        type=number_type(int, 1, MAX_RUNS),
         default=DEFAULT_MC,
         help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
     )
@@ -90,19 +90,35 @@ def number_type(
     noun = "an integer" if kind is int else "a number"
 
     def parse(text: str) -> int | float:
+        shown = text if len(text) <= 40 else text[:39] + "…"
         try:
             value = kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {noun}") from None
-        if not math.isfinite(value):
-            raise argparse.ArgumentTypeError(f"{text!r} is not finite")
+            raise argparse.ArgumentTypeError(f"{shown!r} is not {noun}") from None
+        # an int is always finite (and math.isfinite overflows on 400 digits)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"{shown!r} is not finite")
         if minimum is not None and value < minimum:
-            raise argparse.ArgumentTypeError(f"need {noun} >= {minimum:g}, got {text}")
+            raise argparse.ArgumentTypeError(f"need {noun} >= {_bound(minimum)}, got {shown}")
         if maximum is not None and value > maximum:
-            raise argparse.ArgumentTypeError(f"need {noun} <= {maximum:g}, got {text}")
+            raise argparse.ArgumentTypeError(f"need {noun} <= {_bound(maximum)}, got {shown}")
         return value
 
     return parse
+
+
+def _bound(value: float) -> str:
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+#: Limits of counts and seeds given on the command line: beyond them a value is a
+#: typo, and would overflow a float, an int64 ROS parameter or the memory later.
+MAX_ROBOTS = 1_000_000  # the largest grid, 1000 x 1000
+MAX_RUNS = 100_000
+MAX_EVALS = 1_000_000_000
+MAX_SEED = 2**63 - 1
+#: ``--seed``: an integer in [0, MAX_SEED].
+seed_type = number_type(int, 0, MAX_SEED)
 
 
 def check_tcacs_options(labels: Mapping[str, str], **options: Any) -> None:

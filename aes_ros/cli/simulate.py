@@ -13,7 +13,14 @@ import time
 from pathlib import Path
 
 from aes_ros import report, simulator
-from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.cli.options import (
+    MAX_RUNS,
+    add_scenario_options,
+    load_scenario,
+    number_type,
+    scenario_label,
+    seed_type,
+)
 from aes_ros.params import PARAMS
 from aes_ros.previous_run import SIMULATE_OUTPUTS, add_overwrite_option, check_out_dir, remove
 
@@ -23,10 +30,10 @@ PROGRESS_ABOVE = 2e7
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
-    p.add_argument("--seed", type=int, default=0, help="seed of run 0; run b uses seed + b")
+    p.add_argument("--seed", type=seed_type, default=0, help="seed of run 0; run b uses seed + b")
     p.add_argument(
         "--runs",
-        type=number_type(int, 1),
+        type=number_type(int, 1, MAX_RUNS),
         default=1,
         help="independent Monte-Carlo runs B (metrics.csv holds their mean)",
     )

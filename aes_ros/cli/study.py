@@ -15,6 +15,8 @@ import argparse
 from pathlib import Path
 
 from aes_ros.cli.options import (
+    MAX_EVALS,
+    MAX_RUNS,
     add_monte_carlo_option,
     add_scenario_options,
     check_tcacs_options,
@@ -28,17 +30,22 @@ from aes_ros.optim.tuning import PAPER_GAINS
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
     evals = tcacs.DEFAULT_MAX_EVALS
-    p.add_argument("--evals", type=int, default=evals, help=f"evaluations per TCACS run ({evals})")
+    p.add_argument(
+        "--evals",
+        type=number_type(int, 1, MAX_EVALS),
+        default=evals,
+        help=f"evaluations per TCACS run ({evals})",
+    )
     add_monte_carlo_option(p)
     p.add_argument(
         "--restarts",
-        type=number_type(int, 1),
+        type=number_type(int, 1, MAX_RUNS),
         default=3,
         help="TCACS runs per setting (3)",
     )
     p.add_argument(
         "--eval-runs",
-        type=number_type(int, 1),
+        type=number_type(int, 1, MAX_RUNS),
         default=50,
         help="held-out runs per gain set (50)",
     )
