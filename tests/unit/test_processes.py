@@ -85,12 +85,19 @@ def test_children_of_a_killed_parent_get_sigterm(tmp_path: Path) -> None:
     parent = subprocess.Popen(
         [sys.executable, "-c", PARENT, str(tmp_path)], stdout=subprocess.PIPE, text=True
     )
-    assert parent.stdout is not None
-    child = int(parent.stdout.readline())
-    started = start_time(child)
-    assert started is not None and alive(child, started)
-    parent.kill()
-    parent.wait()
+    try:
+        assert parent.stdout is not None
+        child = int(parent.stdout.readline())
+        started = start_time(child)
+        assert started is not None and alive(child, started)
+        cmdline = Path(f"/proc/{child}/cmdline")
+        deadline = time.monotonic() + 10.0
+        while Path(cmdline.read_bytes().split(b"\0")[0].decode()).name != "sleep":
+            assert time.monotonic() < deadline, "the child never ran its command"
+            time.sleep(0.01)  # setpriv has set the signal once it has exec'd the command
+    finally:
+        parent.kill()
+        parent.wait()
     deadline = time.monotonic() + 10.0
     while alive(child, started) and time.monotonic() < deadline:
         time.sleep(0.05)

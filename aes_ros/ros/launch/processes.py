@@ -196,7 +196,9 @@ def die_with_parent() -> tuple[str, ...]:
     parent-death signal), so that even a SIGKILLed launcher leaves no orphans behind:
     util-linux's ``setpriv``, one exec more, since a launcher runs threads and a
     ``preexec_fn`` may deadlock in a child forked from one. Empty where there is no
-    ``setpriv`` with ``--pdeathsig``: then the reaper SIGKILLs the orphans."""
+    ``setpriv`` with ``--pdeathsig``: then the reaper SIGKILLs the orphans (as it
+    does a child whose parent died in the milliseconds before ``setpriv`` set the
+    signal)."""
     setpriv = shutil.which("setpriv")
     if setpriv is None:
         return ()
