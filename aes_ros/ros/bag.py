@@ -671,7 +671,16 @@ class Recording:
     def _write_journal(self) -> None:
         journal = sequences_path(self.base)
         temporary = journal.with_name("." + journal.name + ".tmp")
-        temporary.write_text(json.dumps({"last": self.gaps.last, "lost": self.gaps.lost}))
+        data = json.dumps({"last": self.gaps.last, "lost": self.gaps.lost}).encode()
+        # O_NOFOLLOW: a link planted at the temporary name is refused, not written through
+        flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_NOFOLLOW
+        fd = os.open(temporary, flags, 0o644)
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(fd, view) :]
+        finally:
+            os.close(fd)
         os.replace(temporary, journal)
 
     def close(self) -> None:

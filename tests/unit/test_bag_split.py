@@ -393,3 +393,13 @@ def test_a_segment_is_never_opened_over_a_planted_link(tmp_path: Path) -> None:
     with pytest.raises(FileExistsError):
         BagWriter(base)
     assert target.read_bytes() == b"precious"
+
+
+def test_the_journal_is_never_written_through_a_planted_link(tmp_path: Path) -> None:
+    base, target = tmp_path / "run.mcap", tmp_path / "precious"
+    target.write_bytes(b"precious")
+    rec = start(base)
+    (tmp_path / ".run.sequences.json.tmp").symlink_to(target)
+    with pytest.raises(OSError):
+        rec.flush()
+    assert target.read_bytes() == b"precious"
