@@ -25,7 +25,13 @@ import sys
 from pathlib import Path
 
 from aes_ros import scenario
-from aes_ros.cli.options import add_scenario_options, load_scenario, number_type, scenario_label
+from aes_ros.cli.options import (
+    add_scenario_options,
+    load_scenario,
+    number_type,
+    scenario_label,
+    seed_type,
+)
 from aes_ros.previous_run import add_overwrite_option
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
 from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_FROM, parse_address
@@ -53,7 +59,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="sim time [s] to run after every robot moves (default: the scenario's "
         "duration; 0: until Ctrl-C)",
     )  # fmt: skip
-    p.add_argument("--seed", type=int, default=0, help="seed of the initial state (as simulate)")
+    p.add_argument(
+        "--seed", type=seed_type, default=0, help="seed of the initial state (as simulate)"
+    )
     p.add_argument(
         "--record", type=Path, default=None, metavar="FILE.mcap",
         help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag; where an "

@@ -25,6 +25,7 @@ from aes_ros.cli.options import (
     add_scenario_options,
     load_scenario,
     number_type,
+    seed_type,
 )
 from aes_ros.params import PARAMS
 from aes_ros.sweep.cluster import TLS_OPTIONS, Scheduler, scheduler
@@ -57,7 +58,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="robots failing mid-run: e.g. 0.1@15 stops 10 %% of them (the same ones in "
         "every run) at t = 15 s",
     )  # fmt: skip
-    p.add_argument("--seed", type=int, default=0, help="first Monte-Carlo seed (and the LHS's)")
+    p.add_argument(
+        "--seed", type=seed_type, default=0, help="first Monte-Carlo seed (and the LHS's)"
+    )
     p.add_argument("--out", type=Path, required=True, help="output directory (resumable)")
     add_scheduler_options(p)
     p.add_argument(

@@ -64,6 +64,8 @@ def test_set_with_any_number_exits_2_naming_the_field(
         (["study", "--restarts", HUGE], "--restarts", "<= 100000"),
         (["dashboard", "--robots", HUGE], "--robots", "<= 1000000"),
         (["launch", "--robots", HUGE], "--robots", "<= 1000000"),
+        (["launch", "--seed", "-1"], "--seed", ">= 0"),
+        (["sweep", "--param", "alpha=0:1:3", "--seed", HUGE], "--seed", "<= 9223372036854775807"),
     ],
 )
 def test_number_options_exit_2_naming_the_option_and_the_range(
