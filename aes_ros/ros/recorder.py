@@ -362,12 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         "segments, its journal): remove those first instead of refusing (exit code 2)",
     )  # fmt: skip
     args = parser.parse_args(argv[:cut])
-    # SIGINT/SIGTERM end spin(); what the readers still hold is written, then the
-    # bag is closed.
-    rclpy.init(args=["recorder", *argv[cut:]], signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    code = 0
-    try:
+    try:  # the bag first: a recording refused or impossible starts no ROS at all
         # the journal if the recording has one: reading the segments takes minutes
         journal = read_journal(args.output) if args.after or args.segment else None
         after: dict[str, tuple[int, int]] = {}
@@ -387,13 +382,16 @@ def main(argv: list[str] | None = None) -> int:
         )
     except EarlierRunError as exc:
         say(f"recording refused: {exc}")
-        rclpy.try_shutdown()
         return 2
     except OSError as exc:
         say(f"recording stopped: cannot write {args.output}: {exc.strerror or exc}")
-        rclpy.try_shutdown()
         return names.RECORDER_CANNOT_WRITE
+    node = None
+    code = 0
     try:
+        # SIGINT/SIGTERM end spin(); what the readers still hold is written, then the
+        # bag is closed.
+        rclpy.init(args=["recorder", *argv[cut:]], signal_handler_options=SignalHandlerOptions.NO)
         node = RecorderNode(bag, args.robots, images_rate=args.images)
         say(f"{names.RECORDER_STARTED} {bag.path}")
         spin([node], SingleThreadedExecutor())

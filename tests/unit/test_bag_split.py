@@ -403,3 +403,17 @@ def test_the_journal_is_never_written_through_a_planted_link(tmp_path: Path) -> 
     with pytest.raises(OSError):
         rec.flush()
     assert target.read_bytes() == b"precious"
+
+
+def test_the_recorder_refuses_an_earlier_recording_before_it_starts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``python -m aes_ros.ros.recorder run.mcap`` beside an earlier ``run_2.mcap``: exit
+    code 2 and the file named, the file kept, nothing written."""
+    from aes_ros.ros.recorder import main
+
+    earlier = tmp_path / "run_2.mcap"
+    earlier.write_bytes(b"x")
+    assert main([str(tmp_path / "run.mcap")]) == 2
+    assert "holds an earlier recording (run_2.mcap)" in capsys.readouterr().out
+    assert earlier.read_bytes() == b"x" and sorted(tmp_path.iterdir()) == [earlier]
