@@ -97,7 +97,39 @@ def neighbor_table(nominal: np.ndarray, radius: float) -> tuple[np.ndarray, np.n
     -------
     neighbors : (N, K) int64, neighbour ids in increasing order, -1 padded.
     rest_lengths : (N, K) float64, l_ij [m], 0 in padded slots.
+
+    Notes
+    -----
+    The candidate pairs come from a k-d tree (O(N log N) time and memory, so that a
+    sheet of any N a message announces can be built), and each is decided on
+    ``|x_j - x_i| <= radius`` exactly as the all-pairs distance matrix of
+    :func:`_neighbor_table_dense` decides it (the tests compare the two).
     """
+    from scipy.spatial import cKDTree
+
+    nominal = np.asarray(nominal, dtype=float)
+    n = len(nominal)
+    # a little wider than radius: the tree's rounding must not lose a pair at the edge
+    pairs = cKDTree(nominal).query_pairs(radius * (1 + 1e-9) + 1e-12, output_type="ndarray")
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    dist = np.linalg.norm(nominal[i] - nominal[j], axis=-1)
+    keep = dist <= radius
+    i, j, dist = i[keep], j[keep], dist[keep]
+    order = np.lexsort((j, i))
+    i, j, dist = i[order], j[order], dist[order]
+    degree = np.bincount(i, minlength=n)
+    K = max(int(degree.max(initial=0)), 1)
+    slot = np.arange(len(i)) - np.repeat(np.cumsum(degree) - degree, degree)
+    neighbors = np.full((n, K), -1, dtype=np.int64)
+    rest = np.zeros((n, K))
+    neighbors[i, slot] = j
+    rest[i, slot] = dist
+    return neighbors, rest
+
+
+def _neighbor_table_dense(nominal: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`neighbor_table` from the (N, N) distance matrix: the plain reference."""
     nominal = np.asarray(nominal, dtype=float)
     dist = np.linalg.norm(nominal[:, None, :] - nominal[None, :, :], axis=-1)
     linked = (dist <= radius) & ~np.eye(len(nominal), dtype=bool)
