@@ -20,6 +20,8 @@ from helpers.probe import Probe
 from helpers.ros_env import reserved_domain_id, ros_variables
 from std_msgs.msg import String
 
+from aes_ros.ros.launch.shared_memory import clean_shared_memory
+
 #: Participants started one after another, each with new ports.
 PARTICIPANTS = 8
 
@@ -146,3 +148,4 @@ def test_a_clean_in_another_pid_namespace_leaves_a_live_participant_its_ports(
     finally:
         listener.kill()
         listener.wait()
+        clean_shared_memory(int(ros_env["ROS_DOMAIN_ID"]))
