@@ -53,7 +53,7 @@ from aes_ros.ros.markers import swarm_markers
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import DISPLAY_WRITER, LATCHED, SENSOR
 from dashboard_node.controls import Control, Drive, Enable, SetGain, SimAction
-from dashboard_node.view import SwarmView
+from dashboard_node.view import PosesError, SwarmView
 
 #: Wall seconds a service or parameter call may take before it counts as unanswered.
 CALL_TIMEOUT = 5.0
@@ -105,25 +105,24 @@ class DashboardNode(Node):
         #: Calls whose service is not matched yet (each returns True once done with).
         self._waiting: list[Callable[[], bool]] = []
 
-        self.create_subscription(PoseArray, names.POSES, self.on_poses, SENSOR, raw=True)
+        subscribe = self._subscribe
+        subscribe(PoseArray, names.POSES, self.on_poses, SENSOR, raw=True)
         for topic, name in (
             (names.ALIGNMENT, "alignment"),
             (names.HEADING_ORDER, "heading_order"),
             (names.TOTAL_FORCE, "total_force"),
         ):
-            self.create_subscription(
+            subscribe(
                 Float64,
                 topic,
                 lambda msg, name=name: self._locked(self.view.on_metric, name, msg.data),
                 LATCHED,
             )
-        self.create_subscription(
-            TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
-        )
-        self.create_subscription(PointStamped, names.ROTATION_CENTER, self.on_center, LATCHED)
-        self.create_subscription(Bool, names.ENABLED, self.on_enabled, LATCHED)
-        self.create_subscription(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
-        self.create_subscription(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
+        subscribe(TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED)
+        subscribe(PointStamped, names.ROTATION_CENTER, self.on_center, LATCHED)
+        subscribe(Bool, names.ENABLED, self.on_enabled, LATCHED)
+        subscribe(ClockMsg, names.CLOCK, self.on_clock, SENSOR)
+        subscribe(DiagnosticArray, names.DIAGNOSTICS, self.on_diagnostics, LATCHED)
 
         self.markers_pub = self.create_publisher(MarkerArray, names.MARKERS, DISPLAY_WRITER)
         self.markers_published = 0
@@ -140,9 +139,26 @@ class DashboardNode(Node):
         # request that would resume it must still be served. (The EventsExecutor has
         # no guard conditions to wake it; 20 Hz polling is quick enough for a click.)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(0.05, self.on_requests, clock=steady)
+        self.create_timer(0.05, self._guarded("requests", self.on_requests), clock=steady)
 
     # --- the swarm ------------------------------------------------------------------
+
+    def _guarded(self, what: str, callback: Callable[..., None]) -> Callable[..., None]:
+        """``callback``, its exceptions logged (throttled) instead of raised: in the
+        executor they would end the node's thread, and the page would show a frozen swarm."""
+
+        def run(*args: Any) -> None:
+            try:
+                callback(*args)
+            except Exception as exc:
+                self._warn(f"{what}: {type(exc).__name__}: {exc}")
+
+        return run
+
+    def _subscribe(self, kind: type, topic: str, callback: Callable, qos: Any, **kw: Any) -> Any:
+        return self.create_subscription(
+            kind, topic, self._guarded(f"dropped {topic}", callback), qos, **kw
+        )
 
     def _locked(self, action: Callable[..., None], *args: Any) -> None:
         with self.lock:
@@ -155,13 +171,14 @@ class DashboardNode(Node):
             self._locked(self.view.on_silent, silent)
 
     def on_poses(self, data: bytes) -> None:
+        """Poses in the world frame, 1 to MAX_ROBOTS of them; anything else is dropped
+        with a throttled warning and the last good poses stay on the page."""
         try:
-            sec, nanosec, xy, yaw = decode_pose_array(data)
-        except BadMessageError as exc:
+            sec, nanosec, xy, yaw = decode_pose_array(data, frame_id=names.WORLD_FRAME)
+            with self.lock:
+                self.view.on_poses(sec + nanosec * 1e-9, xy, yaw)
+        except (BadMessageError, PosesError) as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
-            return
-        with self.lock:
-            self.view.on_poses(sec + nanosec * 1e-9, xy, yaw)
 
     def on_desired_velocity(self, msg: TwistStamped) -> None:
         try:
@@ -225,7 +242,15 @@ class DashboardNode(Node):
             try:
                 self._run(control, future)
             except Exception as exc:  # a request must never take the node down
-                future.set_result((False, f"{type(exc).__name__}: {exc}"))
+                self._settle(future, (False, f"{type(exc).__name__}: {exc}"))
+
+    def _settle(self, future: concurrent.futures.Future, result: tuple[bool, str]) -> None:
+        """Give a request its (ok, message), unless the viewer stopped waiting (the web
+        server cancels it after CALL_TIMEOUT): then the late answer is only logged."""
+        try:
+            future.set_result(result)
+        except concurrent.futures.InvalidStateError:
+            self._warn(f"late answer: after the viewer's {CALL_TIMEOUT:g} s: {result[1]}")
 
     def _run(self, control: Control, future: concurrent.futures.Future) -> None:
         if isinstance(control, Drive):
@@ -271,14 +296,23 @@ class DashboardNode(Node):
         message)."""
         deadline = time.monotonic() + SERVICE_WAIT
 
+        def on_answer(call: Any) -> None:
+            try:
+                result = answer(call.result())
+            except Exception as exc:  # no answer or a malformed one: say so, keep running
+                result = (False, f"{client.srv_name}: {type(exc).__name__}: {exc}")
+            self._settle(future, result)
+
         def attempt() -> bool:  # True: done with it
-            if not client.service_is_ready():
-                if time.monotonic() < deadline:
-                    return False
-                future.set_result((False, f"{client.srv_name}: nobody offers it"))
-                return True
-            call = client.call_async(request)
-            call.add_done_callback(lambda done: future.set_result(answer(done.result())))
+            try:
+                if not client.service_is_ready():
+                    if time.monotonic() < deadline:
+                        return False
+                    self._settle(future, (False, f"{client.srv_name}: nobody offers it"))
+                    return True
+                client.call_async(request).add_done_callback(on_answer)
+            except Exception as exc:
+                self._settle(future, (False, f"{client.srv_name}: {type(exc).__name__}: {exc}"))
             return True
 
         if not attempt():
@@ -294,7 +328,7 @@ class DashboardNode(Node):
             or (name == names.SUPERVISOR_NODE and namespace == "/")
         ]
         if not targets:
-            future.set_result((False, f"{control.name}: no robot node or supervisor found"))
+            self._settle(future, (False, f"{control.name}: no robot node or supervisor found"))
             return
         request = SetParameters.Request(
             parameters=[Parameter(control.name, value=control.value).to_parameter_msg()]
@@ -304,10 +338,13 @@ class DashboardNode(Node):
 
         def done(target: str, call: Any) -> None:
             with lock:
-                result = call.result().results[0]
-                results[target] = (result.successful, result.reason)
+                try:
+                    result = call.result().results[0]
+                    results[target] = (result.successful, result.reason)
+                except Exception as exc:  # no answer or a malformed one
+                    results[target] = (False, f"{type(exc).__name__}: {exc}")
                 if len(results) == len(targets):
-                    future.set_result(_summary(control, results))
+                    self._settle(future, _summary(control, results))
 
         for target in targets:
             client = self._param_clients.get(target)

@@ -21,6 +21,7 @@ import numpy as np
 from aes_ros.formations import spring_pairs
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.model import Gains, SwarmCommand, total_forces
+from aes_ros.params import ParameterError
 from aes_ros.scenario import Scenario
 
 #: Sim seconds of metrics history and centroid trail kept (the strip charts' span).
@@ -29,6 +30,13 @@ HISTORY_S = 60.0
 GAIN_NAMES = ("alpha", "beta", "k", "w_l", "w_r")
 #: Digits kept in a frame (0.1 mm, 1 mrad): enough to draw, small to send.
 DIGITS = 4
+#: The most robots drawn: a frame of 10⁴ is 0.5 MB of JSON and about 20 ms of work;
+#: a ``/swarm/poses`` with more (or none) is dropped and the last good one kept.
+MAX_ROBOTS = 10_000
+
+
+class PosesError(ValueError):
+    """A poses message the view cannot draw (no robots, or more than MAX_ROBOTS)."""
 
 
 @dataclass
@@ -59,18 +67,27 @@ class SwarmView:
         self._sheet(len(self.scenario.nominal_positions()))
 
     def _sheet(self, n: int) -> None:
-        """The sheet of ``n`` robots: the scenario's, or an n-robot grid of it."""
+        """The sheet of ``n`` robots: the scenario's, or an n-robot grid of it; without
+        springs if the scenario has no such grid (e.g. a prime n above its 1000 columns)."""
         scenario = self.scenario
-        if len(scenario.nominal_positions()) != n:
-            scenario = scenario.with_robots(n)
-        _, self.neighbors, self.rest = scenario.sheet()
+        try:
+            if len(scenario.nominal_positions()) != n:
+                scenario = scenario.with_robots(n)
+            _, self.neighbors, self.rest = scenario.sheet()
+        except ParameterError:
+            self.neighbors, self.rest = np.full((n, 1), -1, dtype=np.int64), np.zeros((n, 1))
         self.pairs = spring_pairs(self.neighbors)
         self.n = n
 
     # --- what the swarm says ----------------------------------------------------------
 
     def on_poses(self, t: float, positions: np.ndarray, headings: np.ndarray) -> None:
-        """A ``/swarm/poses`` message: sim time [s], positions (N, 2) [m], headings (N,)."""
+        """A ``/swarm/poses`` message: sim time [s], positions (N, 2) [m], headings (N,).
+
+        Raises PosesError, and keeps the swarm as it was, for 0 or more than MAX_ROBOTS
+        robots."""
+        if not 0 < len(headings) <= MAX_ROBOTS:
+            raise PosesError(f"{len(headings)} poses; the dashboard draws 1 to {MAX_ROBOTS}")
         if len(headings) != self.n:
             self._sheet(len(headings))
             self.trail.clear()

@@ -191,17 +191,24 @@ def _header_and_count(data: bytes, what: str) -> tuple[str, int, int, int, int]:
 
 
 def decode_pose_array(
-    data: bytes, expected: int | None = None
+    data: bytes, expected: int | None = None, frame_id: str | None = None
 ) -> tuple[int, int, np.ndarray, np.ndarray]:
     """(stamp sec, stamp nanosec, positions (N, 2) [m], headings (N,) [rad]) of a raw PoseArray.
 
     Raises BadMessageError for a truncated or malformed message, a pose count other
-    than ``expected`` (if given), and for the values
-    :func:`aes_ros.ros.conversions.planar_poses` rejects (non-finite, out of range).
+    than ``expected`` or a header frame other than ``frame_id`` (each if given), and
+    for the values :func:`aes_ros.ros.conversions.planar_poses` rejects (non-finite,
+    out of range).
     """
     order, sec, nanosec, count_at, n = _header_and_count(data, "PoseArray")
     if expected is not None and n != expected:
         raise BadMessageError(f"PoseArray has {n} poses, expected {expected}")
+    if frame_id is not None:
+        # the frame's bytes end before the count (checked by _header_and_count)
+        frame = bytes(data[_HEADER + 12 : _HEADER + count_at]).split(b"\0", 1)[0]
+        if frame != frame_id.encode():
+            shown = frame[:40].decode("utf-8", "replace")
+            raise BadMessageError(f"PoseArray in frame {shown!r}, expected {frame_id!r}")
     poses_at = _align(count_at + 4, 8) if n else count_at + 4
     if _HEADER + poses_at + 8 * POSE_DOUBLES * n > len(data):
         raise BadMessageError(f"PoseArray: {n} poses announced, message too short")

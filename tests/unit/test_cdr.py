@@ -199,3 +199,13 @@ def test_a_bad_image_is_refused_with_the_reason(change: dict, reason: str) -> No
         decode_image(serialize_message(msg))
     with pytest.raises(BadMessageError):
         decode_image(serialize_message(msg)[:30])
+
+
+@pytest.mark.parametrize("frame", ["map", "odo", "odomx", ""])
+def test_decoder_refuses_poses_in_another_frame_when_asked(frame: str) -> None:
+    pos, head = np.zeros((2, 2)), np.zeros(2)
+    assert decode_pose_array(PoseArrayEncoder(2, "odom").encode(1, 0, pos, head), frame_id="odom")
+    data = PoseArrayEncoder(2, frame).encode(1, 0, pos, head)
+    with pytest.raises(BadMessageError, match=f"frame '{frame}', expected 'odom'"):
+        decode_pose_array(data, frame_id="odom")
+    assert decode_pose_array(data)[2].shape == (2, 2)  # not asked: any frame

@@ -137,6 +137,7 @@ def image() -> bytes:
 #: Each decoder with a valid message of its type.
 DECODERS: dict[str, tuple[Callable[[bytes], Any], Callable[[], bytes]]] = {
     "pose_array": (decode_pose_array, pose_array),
+    "pose_array_in_odom": (lambda data: decode_pose_array(data, frame_id="odom"), pose_array),
     "stamp": (decode_stamp, pose_array),
     "odometry": (decode_odometry, odometry),
     "twist": (decode_twist, lambda: encode_twist(0.05, -0.3)),
