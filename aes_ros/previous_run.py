@@ -6,7 +6,9 @@ first looks for the files it would write. If one of them is there (an earlier ru
 it stops before it starts anything, with exit code 2 and a message naming the place and
 the files, unless ``--overwrite`` is given: then the earlier run's files of those names
 are removed first, and nothing else in the directory is touched. A new or empty
-directory, or one holding only other files, is written into as it is.
+directory, or one holding only other files, is written into as it is. A directory that
+belongs to another user (not root) is refused whatever it holds (:func:`refuse_foreign`): its
+owner could put a link where a run's file is about to be created (in ``/tmp``, say).
 
 Example::
 
@@ -44,6 +46,24 @@ class EarlierRunError(ParameterError):
     the CLI exits with code 2 and the message)."""
 
 
+class ForeignDirectoryError(ParameterError):
+    """The directory a run would write into belongs to another user."""
+
+
+def refuse_foreign(directory: Path, option: str) -> None:
+    """:class:`ForeignDirectoryError` if ``directory`` exists and belongs to neither this
+    user nor root (not followed if it is a link: a link is judged by its own owner)."""
+    try:
+        owner = os.lstat(directory).st_uid
+    except FileNotFoundError:
+        return
+    if owner not in (os.geteuid(), 0):
+        raise ForeignDirectoryError(
+            f"{option} {directory}: belongs to another user (uid {owner}), who could put a "
+            "link where this run's files go; choose a directory of your own"
+        )
+
+
 def earlier_files(directory: Path, names: Iterable[str]) -> list[Path]:
     """The entries of ``names`` present in ``directory`` (a dangling symbolic link too)."""
     directory = Path(directory)
@@ -68,10 +88,12 @@ def check_out_dir(
     directory: Path | None, names: Iterable[str], *, overwrite: bool, option: str = "--out"
 ) -> list[Path]:
     """Refuse (:class:`EarlierRunError`) to write ``names`` into ``directory`` where one of
-    them exists, unless ``overwrite``; returns the existing ones (to :func:`remove`).
+    them exists, unless ``overwrite``, and (:class:`ForeignDirectoryError`) a
+    ``directory`` of another user's; returns the existing ones (to :func:`remove`).
     ``option`` names the directory in the message; None: nothing to check."""
     if directory is None:
         return []
+    refuse_foreign(Path(directory), option)
     return refuse(earlier_files(directory, names), f"{option} {directory}", overwrite)
 
 

@@ -8,6 +8,7 @@ comes before it; ``tests/system/test_previous_run.py`` runs a real one).
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -175,3 +176,20 @@ def test_calibrate_refuses_an_existing_calibration(
     assert main([*args, "--out", str(out)]) == 2
     assert f"--out {out} holds an earlier calibration" in capsys.readouterr().err
     assert out.read_text() == "the lab's calibration"
+
+
+def test_a_directory_of_another_user_is_refused_whatever_it_holds(
+    tmp_path: Path, launches: list[LaunchConfig], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Someone else's empty directory (``/tmp/out`` made by another user first): its owner
+    could put a link where a run's file is about to be created, so nothing goes there."""
+    if os.geteuid() != 0:
+        pytest.skip("giving a directory to another user needs root")
+    out = tmp_path / "out"
+    out.mkdir()
+    os.chown(out, 12345, 12345)
+    assert main(["launch", "--robots", "4", "--out", str(out), "--overwrite"]) == 2
+    assert "belongs to another user (uid 12345)" in capsys.readouterr().err
+    assert launches == [] and list(out.iterdir()) == []
+    assert main(["launch", "--robots", "4", "--record", str(out / "run.mcap")]) == 2
+    assert "--record" in capsys.readouterr().err and launches == []

@@ -9,7 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from aes_ros.previous_run import LAUNCH_OUTPUTS, check_out_dir, refuse
+from aes_ros.previous_run import LAUNCH_OUTPUTS, check_out_dir, refuse, refuse_foreign
 from aes_ros.ros.bag import parse_split, recording_files
 from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
 
@@ -35,6 +35,7 @@ def earlier_run(config: LaunchConfig) -> list[Path]:
     ``config.overwrite``, when they are returned for the launcher to remove."""
     found = check_out_dir(config.out_dir, LAUNCH_OUTPUTS, overwrite=config.overwrite)
     if config.record is not None:
+        refuse_foreign(Path(config.record).parent, "--record")
         bag = recording_files(config.record)
         found += refuse(bag, f"--record {config.record}", config.overwrite, "an earlier recording")
     return found
