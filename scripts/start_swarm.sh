@@ -163,10 +163,9 @@ trap 'stop_all; exit 0' INT TERM
 if [ "$DISCOVERY" = server ]; then
     ENV_ARGS=()
     if [ -z "$SERVER" ]; then  # our own, first: on loopback when discovery stays on this host
-        LISTEN=0.0.0.0
-        case ${ROS_AUTOMATIC_DISCOVERY_RANGE:-} in [Ll][Oo][Cc][Aa][Ll][Hh][Oo][Ss][Tt]) LISTEN=127.0.0.1 ;; esac
+        LISTEN=$("$BIN/python" -m aes_ros.ros.discovery listen)  # else on one interface
         PORT=$("$BIN/python" -m aes_ros.ros.discovery port --listen "$LISTEN")
-        SERVER=127.0.0.1:$PORT
+        SERVER=$LISTEN:$PORT
         ENV_ARGS=(--listen "$LISTEN")
         start discovery_server "$BIN/python" -m aes_ros.ros.discovery serve --port "$PORT" \
             --listen "$LISTEN"

@@ -29,20 +29,24 @@ the server relays to each client the endpoints on the topics that client uses.
   discovery (:func:`participant_variables`).
 
 ``ROS_AUTOMATIC_DISCOVERY_RANGE`` does not limit a client: it talks to the servers it is
-given, wherever they are. A server this module starts listens on 127.0.0.1 when the range
-is ``LOCALHOST`` (the processes of this host only, as the range says) and on every
-interface otherwise, so that robots on other hosts can join with
-``ROS_DISCOVERY_SERVER=<this host's address>:<port>``.
+given, wherever they are. A server a launch starts listens on 127.0.0.1 when the range is
+``LOCALHOST`` (the processes of this host only, as the range says), otherwise on one
+interface, this host's address toward its default route (:func:`host_address`), where
+robots on other hosts join with ``ROS_DISCOVERY_SERVER=<that address>:<port>``.
+:func:`serve` binds the server's UDP transport to that one address (an interface
+allowlist in its profile); only ``--listen 0.0.0.0`` opens every interface.
 """
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import os
 import shlex
 import socket
 import sys
 import sysconfig
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,6 +76,10 @@ SERVER_PROGRAM = "fast-discovery-server"
 #: says why), after which its clients forget a server that died.
 SERVER_PROFILE = Path(__file__).resolve().parent / "fastdds_server_profile.xml"
 SERVER_LEASE = 2.0
+#: The XML namespace of Fast DDS profiles.
+PROFILE_NS = "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"
+#: ``--listen`` for every interface.
+ANY_ADDRESS = "0.0.0.0"
 #: Wall seconds before a server that died is started again: its lease and a margin, so
 #: that no client takes the new server for the old one.
 SERVER_RESTART_DELAY = SERVER_LEASE + 1.0
@@ -128,7 +136,7 @@ class Discovery:
     mode : ``simple`` or ``server``.
     address : ``HOST:PORT`` of the server the processes use (None with simple discovery).
     listen : the address the server started for this swarm listens on (127.0.0.1, or
-        0.0.0.0 for every interface); None when an existing server is used.
+        one interface's address); None when an existing server is used.
     """
 
     mode: str = "simple"
@@ -190,7 +198,8 @@ class Discovery:
             "# (then `ros2 daemon stop`: a running daemon keeps its old discovery settings)",
         ]
         if self.starts_server and self.listen != "127.0.0.1":
-            head.append(f"# robots on other hosts: {SERVER_VARIABLE}={host_address()}:{self.port}")
+            where = host_address() if self.listen == ANY_ADDRESS else self.listen
+            head.append(f"# robots on other hosts: {SERVER_VARIABLE}={where}:{self.port}")
         return "\n".join([*head, *self.shell_lines(env)]) + "\n"
 
 
@@ -204,15 +213,29 @@ def plan(
     """The discovery of a swarm of ``num_robots`` robots started from ``env``: ``mode``
     resolved (:func:`resolved_mode`); with ``server`` (``HOST:PORT``) that existing
     server, else a new one on ``port`` (None: a free one), on 127.0.0.1 when ``env``
-    keeps discovery on this host, else on every interface."""
+    keeps discovery on this host, else on this host's address toward other hosts
+    (:func:`listen_address`); this host's processes reach it where it listens."""
     if resolved_mode(mode, num_robots, server) == "simple":
         return Discovery()
     if server is not None:
         host, number = parse_address(server)
         return Discovery("server", f"{host}:{number}")
-    listen = "127.0.0.1" if is_localhost(env) else "0.0.0.0"
+    listen = listen_address(env)
     number = free_udp_port(listen) if port is None else int(port)
-    return Discovery("server", f"127.0.0.1:{number}", listen)
+    return Discovery("server", f"{listen}:{number}", listen)
+
+
+def listen_address(env: dict[str, str]) -> str:
+    """Where a server started from ``env`` listens: 127.0.0.1 when ``env`` keeps discovery
+    on this host, else :func:`host_address`, or 127.0.0.1 when this host has no route to
+    others (then no other host could reach it anyway)."""
+    if is_localhost(env):
+        return "127.0.0.1"
+    address = host_address()
+    try:
+        return address if not ipaddress.IPv4Address(address).is_loopback else "127.0.0.1"
+    except ValueError:  # a host name: no interface toward other hosts
+        return "127.0.0.1"
 
 
 # ----------------------------------------------------------------------------- the server
@@ -256,15 +279,52 @@ def server_environment(env: dict[str, str], program: str) -> dict[str, str]:
     return out
 
 
+def server_profile(listen: str) -> str:
+    """The server's profile (:data:`SERVER_PROFILE`) for a server on ``listen``: unless
+    that is 0.0.0.0, with one UDPv4 transport allowed only on that address (``-l`` alone
+    sets where the server is announced, but Fast DDS still binds its sockets to every
+    interface)."""
+    ET.register_namespace("", PROFILE_NS)
+    root = ET.parse(SERVER_PROFILE).getroot()
+    if listen != ANY_ADDRESS:
+
+        def tag(name: str) -> str:
+            return f"{{{PROFILE_NS}}}{name}"
+
+        descriptors = ET.Element(tag("transport_descriptors"))
+        descriptor = ET.SubElement(descriptors, tag("transport_descriptor"))
+        ET.SubElement(descriptor, tag("transport_id")).text = "listen"
+        ET.SubElement(descriptor, tag("type")).text = "UDPv4"
+        allowlist = ET.SubElement(ET.SubElement(descriptor, tag("interfaces")), tag("allowlist"))
+        ET.SubElement(allowlist, tag("interface"), name=listen, netmask_filter="OFF")
+        root.insert(0, descriptors)
+        rtps = root.find(f".//{tag('rtps')}")
+        assert rtps is not None, SERVER_PROFILE
+        users = ET.Element(tag("userTransports"))
+        ET.SubElement(users, tag("transport_id")).text = "listen"
+        builtin = ET.Element(tag("useBuiltinTransports"))
+        builtin.text = "false"
+        rtps[0:0] = [users, builtin]
+    return ET.tostring(root, encoding="unicode", xml_declaration=True)
+
+
 def serve(port: int, listen: str) -> None:
-    """Become the discovery server (``exec``: the process is the server, its pid the
-    server's, so that a signal to it reaches the server). Without a backup: the server's
+    """Become the discovery server on ``listen`` (an IPv4 address or a host name, 0.0.0.0
+    for every interface) and UDP ``port``.
+
+    ``exec``: the process is the server, its pid the server's, so that a signal to it
+    reaches the server. Its profile (:func:`server_profile`, given with ``-x``: without
+    it the server takes Fast DDS's built-in defaults, not the default profile of the
+    environment) is an in-memory file the server inherits. Without a backup: the server's
     ``-b`` (restore its state when restarted) crashed at the restart with these wheels
-    (a malloc assertion in Fast DDS 2.14.5); its short lease does the job instead
-    (:data:`SERVER_PROFILE`, given with ``-x``: without it the server takes Fast DDS's
-    built-in defaults, not the default profile of the environment)."""
+    (a malloc assertion in Fast DDS 2.14.5); its short lease does the job instead."""
     program = server_program()
-    argv = [program, "-i", str(SERVER_ID), "-l", listen, "-p", str(port), "-x", str(SERVER_PROFILE)]
+    address = socket.gethostbyname(listen)  # the allowlist takes addresses, not names
+    profile = os.memfd_create("aes_swarm_discovery_server.xml", 0)
+    os.write(profile, server_profile(address).encode())
+    os.set_inheritable(profile, True)
+    path = f"/proc/self/fd/{profile}"
+    argv = [program, "-i", str(SERVER_ID), "-l", address, "-p", str(port), "-x", path]
     os.execve(program, argv, server_environment(dict(os.environ), program))
 
 
@@ -279,23 +339,31 @@ def set_environ(values: dict[str, str | None]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``serve``: run a server; ``port``: print a free UDP port; ``env ADDRESS``: print
-    the shell lines for a swarm on that server (``scripts/start_swarm.sh`` uses all three)."""
+    """``serve``: run a server; ``port``: print a free UDP port; ``listen``: print where a
+    server would listen; ``env ADDRESS``: print the shell lines for a swarm on that server
+    (``scripts/start_swarm.sh`` uses them)."""
     parser = argparse.ArgumentParser(prog="python -m aes_ros.ros.discovery")
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("serve", help="run fast-discovery-server (id 0)")
     run.add_argument("--port", type=int, required=True)
-    run.add_argument("--listen", default="0.0.0.0")
+    run.add_argument(
+        "--listen", default=None, metavar="ADDRESS",
+        help="the one address to listen on (0.0.0.0: every interface; default: "
+        "127.0.0.1 under ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, else this host's address)",
+    )  # fmt: skip
     free = sub.add_parser("port", help="print a free UDP port")
     free.add_argument("--listen", default="127.0.0.1")
+    sub.add_parser("listen", help="print the address a server started here would listen on")
     lines = sub.add_parser("env", help="print ros_env.sh: the shell lines for ros2 commands")
     lines.add_argument("address", help="HOST:PORT of the server")
     lines.add_argument("--listen", default=None, help="what the server listens on, if started")
     args = parser.parse_args(argv)
     if args.command == "serve":
-        serve(args.port, args.listen)
+        serve(args.port, args.listen or listen_address(dict(os.environ)))
     elif args.command == "port":
         print(free_udp_port(args.listen))
+    elif args.command == "listen":
+        print(listen_address(dict(os.environ)))
     else:
         parse_address(args.address)
         print(Discovery("server", args.address, args.listen).script(dict(os.environ)), end="")

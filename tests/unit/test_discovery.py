@@ -77,17 +77,21 @@ def test_options_that_do_not_fit_are_refused_naming_the_field(options: dict, fie
         config(**options)
 
 
-def test_a_started_server_listens_where_discovery_may_reach() -> None:
-    """On loopback when discovery is kept on this host, else on every interface (robots
-    on other hosts join); either way this host's processes use 127.0.0.1. The port is
-    free: the server can bind it."""
+def test_a_started_server_listens_where_discovery_may_reach(monkeypatch) -> None:
+    """On loopback when discovery is kept on this host, else on the one interface toward
+    other hosts (robots there join), never on every interface; this host's processes
+    use the address it listens on. The port is free: the server can bind it."""
     local = dds.plan("server", 9, LOCAL)
     assert local.starts_server and local.listen == "127.0.0.1"
     assert local.address == f"127.0.0.1:{local.port}"
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
         sock.bind(("127.0.0.1", local.port))
+    monkeypatch.setattr(dds, "host_address", lambda: "10.0.0.5")
     wide = dds.plan("server", 9, {"ROS_DOMAIN_ID": "42"}, port=11811)
-    assert (wide.listen, wide.address) == ("0.0.0.0", "127.0.0.1:11811")
+    assert (wide.listen, wide.address) == ("10.0.0.5", "10.0.0.5:11811")
+    monkeypatch.setattr(dds, "host_address", lambda: "lab-pc")  # no route to other hosts
+    alone = dds.plan("server", 9, {"ROS_DOMAIN_ID": "42"}, port=11811)
+    assert (alone.listen, alone.address) == ("127.0.0.1", "127.0.0.1:11811")
     existing = dds.plan("auto", 9, LOCAL, server="10.0.0.2:11811")
     assert not existing.starts_server and existing.address == "10.0.0.2:11811"
     assert dds.plan("auto", 9, LOCAL) == dds.Discovery()
@@ -132,8 +136,16 @@ def test_the_shell_lines_are_what_ros2_commands_need() -> None:
     script = server.script(LOCAL)
     assert script.endswith("\n".join(server.shell_lines(LOCAL)) + "\n")
     assert "other hosts" not in script  # a loopback server is for this host only
-    wide = dds.Discovery("server", "127.0.0.1:5000", "0.0.0.0").script(LOCAL)
-    assert "# robots on other hosts: ROS_DISCOVERY_SERVER=" in wide and ":5000" in wide
+    wide = dds.Discovery("server", "10.0.0.5:5000", "10.0.0.5").script(LOCAL)
+    assert "# robots on other hosts: ROS_DISCOVERY_SERVER=10.0.0.5:5000" in wide
+
+
+def test_the_listen_command_prints_where_a_server_here_would_listen(capsys, monkeypatch) -> None:
+    monkeypatch.setattr(dds, "host_address", lambda: "10.0.0.5")
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    assert dds.main(["listen"]) == 0 and capsys.readouterr().out == "127.0.0.1\n"
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET")
+    assert dds.main(["listen"]) == 0 and capsys.readouterr().out == "10.0.0.5\n"
 
 
 def test_the_env_command_prints_the_script(capsys: pytest.CaptureFixture[str], monkeypatch) -> None:
@@ -201,15 +213,35 @@ def test_serve_becomes_the_server_with_its_profile(monkeypatch: pytest.MonkeyPat
     became: list = []
 
     def execve(program: str, argv: list[str], env: dict[str, str]) -> None:
-        became.append((program, argv, env))
+        became.append((program, argv, env, Path(argv[-1]).read_text()))
 
     monkeypatch.setattr(os, "execve", execve)
     monkeypatch.setenv("ROS_DISCOVERY_SERVER", "10.9.9.9:1")
-    dds.serve(5000, "127.0.0.1")
-    ((program, argv, env),) = became
+    dds.serve(5000, "localhost")
+    ((program, argv, env, profile),) = became
+    fd = int(argv[-1].rsplit("/", 1)[1])
+    assert os.get_inheritable(fd)  # the server opens it after the exec
+    os.close(fd)
     assert program == dds.server_program() and argv[0] == program
-    assert argv[1:] == ["-i", "0", "-l", "127.0.0.1", "-p", "5000", "-x", str(dds.SERVER_PROFILE)]
+    assert argv[1:-1] == ["-i", "0", "-l", "127.0.0.1", "-p", "5000", "-x"]
+    assert profile == dds.server_profile("127.0.0.1")
     assert "ROS_DISCOVERY_SERVER" not in env and env["FASTDDS_BUILTIN_TRANSPORTS"] == "UDPv4"
+
+
+def test_the_servers_transport_is_allowed_on_its_address_only() -> None:
+    """``-l`` alone would still bind every interface: the profile allows one address."""
+    ns = {"p": dds.PROFILE_NS}
+    root = ET.fromstring(dds.server_profile("10.0.0.5"))
+    (interface,) = root.findall(
+        ".//p:transport_descriptor/p:interfaces/p:allowlist/p:interface", ns
+    )
+    assert interface.get("name") == "10.0.0.5"
+    rtps = root.find(".//p:rtps", ns)
+    assert rtps.find("p:useBuiltinTransports", ns).text == "false"
+    assert rtps.find("p:userTransports/p:transport_id", ns).text == "listen"
+    assert rtps.find(".//p:discoveryProtocol", ns).text == "SERVER"  # the lease profile kept
+    every = ET.fromstring(dds.server_profile(dds.ANY_ADDRESS))
+    assert every.find(".//p:transport_descriptor", ns) is None
 
 
 def test_a_dead_server_is_restarted_after_its_lease(tmp_path: Path) -> None:
