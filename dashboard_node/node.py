@@ -177,8 +177,10 @@ class DashboardNode(Node):
             sec, nanosec, xy, yaw = decode_pose_array(data, frame_id=names.WORLD_FRAME)
             with self.lock:
                 self.view.on_poses(sec + nanosec * 1e-9, xy, yaw)
-        except (BadMessageError, PosesError) as exc:
+        except BadMessageError as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
+        except PosesError as exc:  # "no poses", "too many poses": each throttled on its own
+            self._warn(f"dropped /swarm/poses, {exc}")
 
     def on_desired_velocity(self, msg: TwistStamped) -> None:
         try:

@@ -86,8 +86,10 @@ class SwarmView:
 
         Raises PosesError, and keeps the swarm as it was, for 0 or more than MAX_ROBOTS
         robots."""
-        if not 0 < len(headings) <= MAX_ROBOTS:
-            raise PosesError(f"{len(headings)} poses; the dashboard draws 1 to {MAX_ROBOTS}")
+        if len(headings) == 0:
+            raise PosesError("no poses")
+        if len(headings) > MAX_ROBOTS:
+            raise PosesError(f"too many poses: {len(headings)}; at most {MAX_ROBOTS} are drawn")
         if len(headings) != self.n:
             self._sheet(len(headings))
             self.trail.clear()

@@ -189,7 +189,7 @@ class SwarmInputs:
         if not robots:
             return
         try:
-            sec, nanosec, xy, yaw = decode_pose_array(data)
+            sec, nanosec, xy, yaw = decode_pose_array(data, frame_id=names.WORLD_FRAME)
         except BadMessageError as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
             return

@@ -291,13 +291,16 @@ class SupervisorNode(Node):
     def on_poses(self, data: bytes) -> None:
         """Keep the latest poses; in centroid mode publish their centroid right away.
 
-        A message that is not finite, has a coordinate beyond ±MAX_COORDINATE or not
-        one pose per robot is dropped with a throttled warning (the last good one stays).
+        A message that is not finite, has a coordinate beyond ±MAX_COORDINATE, is not in
+        the world frame or has not one pose per robot is dropped with a throttled warning
+        (the last good one stays).
         """
         try:
             # One pose per robot of the scenario, or none of them: a partial array
             # would give a wrong centroid.
-            sec, nanosec, xy, yaw = decode_pose_array(data, expected=len(self._neighbors))
+            sec, nanosec, xy, yaw = decode_pose_array(
+                data, expected=len(self._neighbors), frame_id=names.WORLD_FRAME
+            )
         except BadMessageError as exc:
             self._warn(f"dropped /swarm/poses: {exc}")
             return

@@ -39,6 +39,7 @@ from std_msgs.msg import Float64
 from aes_ros import scenario as scenario_mod
 from aes_ros.model import Gains, RobotCommand, SwarmCommand
 from aes_ros.ros import interface as names
+from aes_ros.ros.cdr import PoseArrayEncoder
 from aes_ros.ros.conversions import MAX_COORDINATE
 from aes_ros.ros.interface import robot_topic
 from aes_ros.ros.qos import COMMAND, LATCHED, SENSOR
@@ -120,8 +121,14 @@ def start_robot_1(spawn, probe: Probe):
     return proc, robot
 
 
+def in_frame(msg: PoseArray, frame_id: str) -> PoseArray:
+    msg.header.frame_id = frame_id
+    return msg
+
+
 def check_bad_poses_give_no_command(robot: Robot1) -> None:
-    """/swarm/poses: non-finite or huge values anywhere, no pose for this robot."""
+    """/swarm/poses: non-finite or huge values anywhere, no pose for this robot, another
+    frame than the world's."""
     xy, yaw = robot.xy, robot.yaw
     bad_poses = []
     for value in BAD_NUMBERS:
@@ -133,6 +140,7 @@ def check_bad_poses_give_no_command(robot: Robot1) -> None:
         msg.poses[2].orientation.z = value
         bad_poses.append(msg)
     bad_poses += [poses_msg(xy[:1], yaw[:1], 9.0), PoseArray()]
+    bad_poses += [in_frame(robot.good(), "map"), in_frame(robot.good(), "")]
     quiet(robot.forces, lambda: [robot.poses.publish(m) for m in bad_poses])
 
 
@@ -254,9 +262,9 @@ SUPERVISOR = ["aes-supervisor", "--ros-args", "-p", "scenario:=linear", "-p", "n
 
 
 def test_supervisor_drops_bad_messages_and_parameters(spawn, probe):
-    """±inf and 1e300 on /swarm/cmd; NaN, huge and wrong-length /swarm/poses; parameters
-    of the wrong type: the command and the parameters stay, no centre or metrics from a
-    bad poses message, one warning per kind, the node stays up."""
+    """±inf and 1e300 on /swarm/cmd; NaN, huge, wrong-length (none, 10⁵) and wrong-frame
+    /swarm/poses; parameters of the wrong type: the command and the parameters stay, no
+    centre or metrics from a bad poses message, one warning per kind, the node stays up."""
     proc = spawn.start(*SUPERVISOR, "-p", "publish_rate:=20.0", name="supervisor")
     log = spawn.log(proc)
     velocity = probe.record(TwistStamped, names.DESIRED_VELOCITY, LATCHED)
@@ -281,6 +289,9 @@ def test_supervisor_drops_bad_messages_and_parameters(spawn, probe):
         bad_poses.append(msg)
     bad_poses += [poses_msg(xy[:3], yaw[:3], 2.0), PoseArray()]
     bad_poses.append(poses_msg(np.vstack([xy, [[9.0, 9.0]]]), np.append(yaw, 0.0), 2.0))
+    bad_poses.append(in_frame(poses_msg(xy, yaw, 2.0), "map"))
+    many = 10**5  # 5.6 MB, published as its wire format: building 10⁵ Pose objects is slow
+    bad_poses.append(PoseArrayEncoder(many).encode(2, 0, np.zeros((many, 2)), np.zeros(many)))
     n_centers, n_alignment = len(centers), len(alignment)
     for _ in range(3):
         for msg in bad_poses:
