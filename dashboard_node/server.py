@@ -128,8 +128,9 @@ class Dashboard:
         if self.site.port != self.port:  # port 0 became a real one
             self.site = Site(self.host, self.port)
         remote = request.remote or "?"
-        if not self.site.host_allowed(request.host):
-            self.node._warn(f"refused a request for another Host: {request.host!r} from {remote}")
+        host = request.headers.get("Host")  # not request.host: that falls back to the socket's
+        if not self.site.host_allowed(host):
+            self.node._warn(f"refused a request for another Host: {host!r} from {remote}")
             return _refusal(403, "this server does not answer to that Host name")
         origin = request.headers.get("Origin")
         needs_origin = request.method not in SAFE_METHODS or request.path == "/ws"

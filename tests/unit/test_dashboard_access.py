@@ -145,6 +145,11 @@ def test_a_foreign_host_is_refused() -> None:
             evil = f"evil.example:{port}"
             await client.ws_connect("/ws", origin=f"http://{evil}", headers={"Host": evil})
         assert refused.value.status == 403
+        # no Host header at all (HTTP/1.0)
+        reader, writer = await asyncio.open_connection("127.0.0.1", port)
+        writer.write(b"GET / HTTP/1.0\r\n\r\n")
+        assert (await reader.readline()).startswith(b"HTTP/1.0 403")
+        writer.close()
         for name in ("127.0.0.1", "localhost", "[::1]", "LOCALHOST"):
             host = f"{name}:{port}"
             response = await client.get("/", headers={"Host": host})
