@@ -8,9 +8,13 @@ nodes' ``ParameterDescriptor`` s and the README table are all built from
 
 from __future__ import annotations
 
+import array
 import math
 from dataclasses import dataclass
 from typing import Any
+
+#: What a vector parameter may be given as: rclpy hands double arrays over as array('d').
+SEQUENCES = (list, tuple, array.array)
 
 
 class ParameterError(ValueError):
@@ -90,7 +94,7 @@ class ParamSpec:
         if self.kind in ("vec2", "center"):
             if isinstance(value, str):
                 value = [v for v in value.replace("[", "").replace("]", "").split(",") if v]
-            if not isinstance(value, list | tuple) or len(value) != 2:
+            if not isinstance(value, SEQUENCES) or len(value) != 2:
                 raise ValueError("need exactly two numbers")
             return (self._number(value[0], float), self._number(value[1], float))
         if self.kind == "int":
@@ -104,7 +108,7 @@ class ParamSpec:
             return ()
         if isinstance(value, str):
             value = [v for v in value.replace("[", "").replace("]", "").split(",") if v.strip()]
-        if not isinstance(value, list | tuple) or len(value) not in (0, 4):
+        if not isinstance(value, SEQUENCES) or len(value) not in (0, 4):
             raise ValueError("need four numbers or none")
         if len(value) == 0:
             return ()
