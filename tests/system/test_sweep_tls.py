@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import socket
 import ssl
@@ -70,6 +71,8 @@ def tls_files(certs: Path, ca: str, member: str) -> list[str]:
 @pytest.fixture
 def tls_cluster(tmp_path: Path) -> Iterator[tuple[str, Path]]:
     """A TLS scheduler on 127.0.0.1 and one worker; yields (address, certificate directory)."""
+    if shutil.which("openssl") is None:
+        pytest.skip("needs the openssl command")
     certs = tmp_path / "certs"
     certs.mkdir()
     make_ca(certs, "ca")
@@ -140,7 +143,10 @@ def test_a_tls_cluster_runs_the_sweep_for_its_members_only(tls_cluster, tmp_path
     context.check_hostname = False
     host, port = address.removeprefix("tls://").rsplit(":", 1)
     with socket.create_connection((host, int(port)), timeout=10) as raw:
-        with pytest.raises((ssl.SSLError, ConnectionError)):
+        try:
             with context.wrap_socket(raw) as conn:  # TLS 1.3: the refusal comes on first read
                 conn.sendall(b"\0")
-                conn.recv(1)
+                refused = conn.recv(1) == b""  # closed without a word also refuses
+        except (ssl.SSLError, ConnectionError):
+            refused = True
+    assert refused
