@@ -425,7 +425,8 @@ def main(args: list[str] | None = None, *, print_url: bool = False) -> int:
                     failed.append(exc)
                     node.get_logger().fatal(f"the node's thread failed: {exc!r}")
                 finally:
-                    loop.call_soon_threadsafe(stop.set)
+                    if not done.is_set():  # else the server stopped first and closed its loop
+                        loop.call_soon_threadsafe(stop.set)
 
             threads.append(threading.Thread(target=spin, name="dashboard-ros", daemon=True))
             threads[0].start()
