@@ -278,6 +278,8 @@ def test_a_page_of_another_origin_cannot_steer_the_swarm(spawn, probe, chromium,
         chromium.screenshot("foreign-page")
         assert attack()["opened"] == [] and attack()["messages"] == [], attack()
         chromium.switch_to.frame(chromium.find_element(By.ID, "framed"))
+        loaded = lambda: chromium.execute_script("return document.readyState") == "complete"  # noqa: E731
+        probe.wait(loaded, 10.0, "the frame loaded")
         assert browser.page_state(chromium) is None  # frame-ancestors 'none': no dashboard
         chromium.switch_to.default_content()
     time.sleep(2.0)  # anything that got through would have reached the supervisor by now
