@@ -293,7 +293,8 @@ def test_the_cli_takes_no_token_on_its_command_line(
     assert cli.main(["dashboard", "--token-file", str(loose)]) == 2
     assert "chmod 600" in capsys.readouterr().err
     monkeypatch.setenv(access.TOKEN_VARIABLE, "short")
-    assert cli.main(["launch", "--robots", "4", "--dashboard", "0", "--out", str(tmp_path)]) == 2
+    launch = ["launch", "--robots", "4", "--dashboard", "0", "--out", str(tmp_path / "out")]
+    assert cli.main(launch) == 2
     assert "at least 16" in capsys.readouterr().err
 
 
