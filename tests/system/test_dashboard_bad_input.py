@@ -27,7 +27,7 @@ from helpers.ros_env import TIMEOUT, wait_for
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import PoseArrayEncoder
 from aes_ros.ros.qos import SENSOR
-from dashboard_node.node import CALL_TIMEOUT
+from dashboard_node.requests import CALL_TIMEOUT
 
 N = 3
 XY = np.array([[-0.2, 0.0], [0.0, 0.0], [0.25, 0.0]])

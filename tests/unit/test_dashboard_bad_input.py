@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from aes_ros import scenario
-from dashboard_node.node import DashboardNode
+from dashboard_node.requests import ControlRequests
 from dashboard_node.view import MAX_ROBOTS, PosesError, SwarmView
 
 
@@ -57,7 +57,7 @@ def test_any_size_up_to_the_maximum_is_drawn(n: int) -> None:
 
 def settle(future: concurrent.futures.Future, result: tuple[bool, str]) -> list[str]:
     warnings: list[str] = []
-    DashboardNode._settle(SimpleNamespace(_warn=warnings.append), future, result)
+    ControlRequests._settle(SimpleNamespace(_warn=warnings.append), future, result)
     return warnings
 
 
