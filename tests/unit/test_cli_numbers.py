@@ -87,3 +87,24 @@ def test_number_options_exit_2_naming_the_option_and_the_range(
     assert option in err and allowed in err, err
     assert "Traceback" not in err and len(err) < 2000
     assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("content", "field"),
+    [
+        (f"alpha: {HUGE}\n", "alpha"),
+        (f"rows: {HUGE}\n", "rows"),
+        ("direction: {x: 1, y: 0}\n", "direction"),
+        ("arena: 5\n", "arena"),
+        (f"rotation_center: [0, {HUGE}]\n", "rotation_center"),
+    ],
+)
+def test_scenario_file_with_any_value_exits_2_naming_the_field(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, field: str
+) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(content)
+    code = main(["simulate", "--scenario", str(path), "--out", str(tmp_path / "x")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "bad.yaml" in err and f"{field}:" in err and len(err) < 600, err

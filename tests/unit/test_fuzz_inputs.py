@@ -3,6 +3,9 @@ documented error comes out.
 
 - a viewer's control message (:func:`dashboard_node.controls.parse_control`): any JSON
   value, and any text, gives a ``Control`` or a ``ControlError``;
+- a parameter value from a scenario file, ``--set`` or a ROS parameter
+  (:meth:`aes_ros.params.ParamSpec.validate`): any value gives the value converted or a
+  ``ParameterError`` naming the parameter;
 - every wire-format decoder of :mod:`aes_ros.ros.cdr`: valid messages with bits flipped,
   bytes cut, inserted or overwritten by a huge length give a correct decode or a
   ``BadMessageError``, never another exception or an allocation sized by a lying field.
@@ -21,6 +24,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros.cdr import (
     OdometryEncoder,
     PoseArrayEncoder,
@@ -116,6 +120,23 @@ def test_any_text_or_bytes_gives_a_control_or_a_control_error(text: str | bytes)
 def test_messages_that_raised_other_errors_are_control_errors(text: str) -> None:
     with pytest.raises(ControlError):
         parse_control(text)
+
+
+# --- parameter values -------------------------------------------------------------------
+
+
+@FUZZ
+@given(
+    name=st.sampled_from(list(PARAMS)),
+    value=json_values | st.text(max_size=12) | st.builds(str, numbers) | st.tuples(numbers),
+)
+def test_any_parameter_value_is_converted_or_refused_naming_the_parameter(
+    name: str, value: Any
+) -> None:
+    try:
+        PARAMS[name].validate(value)
+    except ParameterError as exc:
+        assert str(exc).startswith(f"{name}: ") and len(str(exc)) < 400, str(exc)
 
 
 # --- wire-format decoders ---------------------------------------------------------------
