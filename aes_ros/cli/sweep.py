@@ -29,7 +29,7 @@ from aes_ros.cli.options import (
 )
 from aes_ros.params import PARAMS
 from aes_ros.sweep.cluster import TLS_OPTIONS, Scheduler, scheduler
-from aes_ros.sweep.spec import SweepSpecError
+from aes_ros.sweep.spec import MAX_POINTS, SweepSpecError
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -40,7 +40,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "(`aes-swarm params`) or robots",
     )  # fmt: skip
     p.add_argument(
-        "--lhs", type=number_type(int, 1), default=None, metavar="N",
+        "--lhs", type=number_type(int, 1, MAX_POINTS), default=None, metavar="N",
         help="N Latin-hypercube samples of the --param ranges instead of the grid",
     )  # fmt: skip
     add_scenario_options(p)

@@ -26,6 +26,8 @@ from aes_ros.params import PARAMS, ParameterError
 #: The swarm size as a sweep axis (a near-square grid of N robots, as ``--robots``).
 ROBOTS = "robots"
 ROBOTS_RANGE = (1, 100_000)
+#: The most points one sweep may have (grid or ``--lhs``): beyond it a spec is a typo.
+MAX_POINTS = 1_000_000
 
 
 class SweepSpecError(ParameterError):
@@ -118,8 +120,10 @@ def parse_axis(text: str) -> Axis:
             count = int(parts[2])
         except ValueError:
             raise SweepSpecError(f"--param {name}: count {parts[2]!r} is not an integer") from None
-        if count < 1:
-            raise SweepSpecError(f"--param {name}: count {count}: the range is empty; need n >= 1")
+        if not 1 <= count <= MAX_POINTS:
+            raise SweepSpecError(
+                f"--param {name}: count {parts[2]:.40}: need 1 <= n <= {MAX_POINTS}"
+            )
     if low > high:
         raise SweepSpecError(f"--param {name}: the range {low:g}:{high:g} is empty (low > high)")
     if count is not None and count > 1 and low == high:
@@ -160,10 +164,13 @@ def points(axes: list[Axis], lhs: int | None = None, seed: int = 0) -> np.ndarra
     if lhs is not None:
         from scipy.stats import qmc
 
-        if lhs < 1:
-            raise SweepSpecError(f"--lhs {lhs}: need at least 1 sample")
+        if not 1 <= lhs <= MAX_POINTS:
+            raise SweepSpecError(f"--lhs {str(lhs)[:40]}: need 1 to {MAX_POINTS} samples")
         unit = qmc.LatinHypercube(d=len(axes), seed=np.random.default_rng(seed)).random(lhs)
         return np.stack([a.scale(unit[:, j]) for j, a in enumerate(axes)], axis=1)
+    size = math.prod(a.count or 1 for a in axes)
+    if size > MAX_POINTS:
+        raise SweepSpecError(f"--param: the grid has {size:.3g} points; at most {MAX_POINTS}")
     grids = [a.grid() for a in axes]
     mesh = np.meshgrid(*grids, indexing="ij")
     return np.stack([m.ravel() for m in mesh], axis=1)

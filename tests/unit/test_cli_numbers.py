@@ -66,6 +66,9 @@ def test_set_with_any_number_exits_2_naming_the_field(
         (["launch", "--robots", HUGE], "--robots", "<= 1000000"),
         (["launch", "--seed", "-1"], "--seed", ">= 0"),
         (["sweep", "--param", "alpha=0:1:3", "--seed", HUGE], "--seed", "<= 9223372036854775807"),
+        (["sweep", "--param", "alpha=0:1", "--lhs", HUGE], "--lhs", "<= 1000000"),
+        (["sweep", "--param", f"alpha=0:1:{HUGE}"], "--param alpha", "n <= 1000000"),
+        (["sweep", "--param", "alpha=0:1:1000", "--param", "k=0.1:1:1001"], "--param", "1000000"),
     ],
 )
 def test_number_options_exit_2_naming_the_option_and_the_range(
