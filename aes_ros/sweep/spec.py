@@ -120,7 +120,9 @@ def parse_axis(text: str) -> Axis:
             count = int(parts[2])
         except ValueError:
             raise SweepSpecError(f"--param {name}: count {parts[2]!r} is not an integer") from None
-        if not 1 <= count <= MAX_POINTS:
+        if count < 1:
+            raise SweepSpecError(f"--param {name}: count {count}: the range is empty; need n >= 1")
+        if count > MAX_POINTS:
             raise SweepSpecError(
                 f"--param {name}: count {parts[2]:.40}: need 1 <= n <= {MAX_POINTS}"
             )
