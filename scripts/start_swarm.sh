@@ -155,8 +155,11 @@ stop_all() {
         fi
     done
     wait 2>/dev/null || true
-    # Fast DDS leaves shared-memory segments behind for killed processes.
-    [ -x "$BIN/fastdds" ] && "$BIN/fastdds" shm clean >/dev/null 2>&1 || true
+    # Fast DDS leaves shared-memory files behind for killed processes; this removes only
+    # this user's files that no live participant holds (not `fastdds shm clean`, which
+    # removes any user's).
+    "$BIN/python" -c "import sys; from aes_ros.ros.launch.shared_memory import \
+clean_shared_memory; clean_shared_memory(int(sys.argv[1]))" "${ROS_DOMAIN_ID:-0}" || true
 }
 trap 'stop_all; exit 0' INT TERM
 
