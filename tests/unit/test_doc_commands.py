@@ -1,0 +1,210 @@
+"""Every ``aes-swarm …`` command shown in a fenced block of README.md or docs/ parses.
+
+Each command is given to the real ``aes-swarm`` parser (nothing runs), so an unknown or
+deprecated flag, a missing argument or a value the parser refuses fails with the file
+and the line. What a block may hold besides plain commands:
+
+- ``\\`` continues a line, ``# …`` is a comment, ``&&``, ``;``, ``|`` and redirections
+  end a command;
+- a placeholder (``<…>``, ``HOST``, ``DIR``, ``$VAR``) stands for a value: it is
+  replaced by one the parser takes, when one exists;
+- a synopsis (``[--flag X]``, ``{a,b}``) or a command with ``…`` for the elided rest
+  is checked flag by flag: each must be an option of its subcommand;
+- a listing (``aes-swarm simulate   what it does``: two spaces after the subcommand)
+  only names a subcommand.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import itertools
+import re
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from aes_ros.cli import build_parser
+
+ROOT = Path(__file__).resolve().parents[2]
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+PROGRAMS = ("aes-swarm", ".venv/bin/aes-swarm")
+ELISIONS = ("…", "...")
+#: Tokens that end one shell command (shlex with punctuation_chars).
+SEPARATORS = {"&&", "||", ";", "|", "&", ">", ">>", "<", ">&", "&>", "2>", "2>&1"}
+#: What ``<N>`` becomes before the line is split into words.
+HOLE = "__PLACEHOLDER__"
+PLACEHOLDER = re.compile(rf"{HOLE}|^[A-Z][A-Z0-9_]*(:[A-Z0-9_]+)?$|\$|…")
+
+
+@dataclass(frozen=True)
+class Command:
+    """One ``aes-swarm`` command of a document."""
+
+    path: Path
+    line: int
+    text: str
+    argv: tuple[str, ...]
+    kind: str  # "parse", "flags" or "listing"
+
+    @property
+    def where(self) -> str:
+        return f"{self.path.relative_to(ROOT)}:{self.line}"
+
+
+def fenced_lines(text: str) -> list[tuple[int, str]]:
+    """The lines inside fenced code blocks, with their 1-based line numbers; continued
+    lines (``\\``) joined onto the first."""
+    out: list[tuple[int, str]] = []
+    inside = False
+    pending: tuple[int, str] | None = None
+    for number, line in enumerate(text.splitlines(), start=1):
+        if line.lstrip().startswith("```"):
+            inside = not inside
+            pending = None
+            continue
+        if not inside:
+            continue
+        if pending is not None:
+            number, line = pending[0], pending[1] + " " + line.strip()
+            pending = None
+        if line.rstrip().endswith("\\"):
+            pending = (number, line.rstrip()[:-1])
+            continue
+        out.append((number, line))
+    return out
+
+
+def _words(line: str) -> list[str]:
+    lexer = shlex.shlex(line, posix=True, punctuation_chars=True)
+    lexer.whitespace_split = True
+    lexer.commenters = "#"
+    try:
+        return list(lexer)
+    except ValueError:  # an unbalanced quote in prose
+        return line.split()
+
+
+def commands_of(path: Path) -> list[Command]:
+    """Every ``aes-swarm`` command in the fenced blocks of ``path``."""
+    found = []
+    for number, line in fenced_lines(path.read_text()):
+        body = line.strip().removeprefix("$ ")
+        words = _words(re.sub(r"<[^<>\s]+>", HOLE, body))
+        for start, word in enumerate(words):
+            if word not in PROGRAMS:
+                continue
+            argv: list[str] = []
+            for w in words[start + 1 :]:
+                if w in SEPARATORS:
+                    break
+                argv.append(w)
+            if argv and argv[-1].isdigit() and len(argv) < len(words) - start - 1:
+                argv.pop()  # the "2" of "2>&1"
+            rest = body.split(word, 1)[1]
+            if re.match(r"\s+[a-z]+\s{2,}[^-\s#]", rest):
+                kind = "listing"
+            elif any(w in ELISIONS or w.startswith(("[", "{")) for w in argv) or "[--" in rest:
+                kind = "flags"
+            else:
+                kind = "parse"
+            found.append(Command(path, number, body, tuple(argv), kind))
+    return found
+
+
+ALL = [c for path in DOCS for c in commands_of(path)]
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    (action,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return action.choices
+
+
+def _visible_options(sub: argparse.ArgumentParser) -> set[str]:
+    return {s for a in sub._actions if a.help is not argparse.SUPPRESS for s in a.option_strings}
+
+
+def _candidates(sub: argparse.ArgumentParser, argv: list[str], i: int) -> list[str]:
+    """Values that may stand for the placeholder ``argv[i]``."""
+    by_flag = {s: a for a in sub._actions for s in a.option_strings}
+    action = by_flag.get(argv[i - 1]) if i > 0 else None
+    if action is not None and action.choices:
+        return [str(next(iter(action.choices)))]
+    values = ["1", "1,1", "placeholder", "640x480", "127.0.0.1:8786"]
+    for a in sub._actions:
+        if not a.option_strings and a.choices:
+            values += [str(c) for c in a.choices]
+    return values
+
+
+def _parse(parser: argparse.ArgumentParser, argv: list[str]) -> str | None:
+    """The parser's complaint about ``argv`` (its stderr), or None if it parses."""
+    err, out = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
+        try:
+            parser.parse_args(argv)
+        except SystemExit as exc:
+            if exc.code not in (0, None):
+                return err.getvalue().strip() or f"exit {exc.code}"
+    if "deprecat" in err.getvalue().lower():
+        return err.getvalue().strip()
+    return None
+
+
+def check(command: Command) -> str | None:
+    """Why ``command`` does not parse, or None."""
+    parser = build_parser()
+    commands = _subparsers(parser)
+    argv = list(command.argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        return None
+    if argv[0] not in commands:
+        return f"unknown subcommand {argv[0]!r}"
+    sub = commands[argv[0]]
+    if command.kind == "listing":
+        return None
+    if command.kind == "flags":
+        known = _visible_options(sub)
+        flags = (re.match(r"-[-\w]+", w.strip("[]{}")) for w in argv[1:])
+        unknown = [m.group() for m in flags if m and m.group() not in known]
+        return f"unknown or deprecated flags {unknown}" if unknown else None
+    holes = [i for i, w in enumerate(argv) if i > 0 and PLACEHOLDER.search(w)]
+    first = None
+    for values in itertools.product(*(_candidates(sub, argv, i) for i in holes)):
+        trial = list(argv)
+        for i, value in zip(holes, values, strict=True):
+            trial[i] = value
+        complaint = _parse(parser, trial)
+        if complaint is None:
+            return None
+        first = first or complaint
+    return first
+
+
+@pytest.mark.parametrize("command", ALL, ids=[c.where for c in ALL])
+def test_documented_command_parses(command: Command) -> None:
+    complaint = check(command)
+    assert complaint is None, f"{command.where}: `{command.text}`\n{complaint}"
+
+
+def test_the_docs_show_commands() -> None:
+    """The extraction finds the README's demo and a command of every kind."""
+    assert any(c.path.name == "README.md" and "launch" in c.argv[:1] for c in ALL)
+    assert {c.kind for c in ALL} >= {"parse", "flags"}
+
+
+def test_a_bad_flag_is_caught(tmp_path: Path) -> None:
+    doc = tmp_path / "x.md"
+    doc.write_text(
+        "```bash\naes-swarm simulate --no-such-flag 3 \\\n  --out out/x   # a comment\n"
+        "aes-swarm launch --robots <N> --out DIR\n"
+        "aes-swarm steer [--wrong X]\n```\n"
+    )
+    bad, good, synopsis = commands_of(doc)
+    assert (bad.line, bad.argv) == (2, ("simulate", "--no-such-flag", "3", "--out", "out/x"))
+    assert "--no-such-flag" in (check(bad) or "")
+    assert check(good) is None
+    assert synopsis.kind == "flags" and "--wrong" in (check(synopsis) or "")
