@@ -331,9 +331,9 @@ def analyse(got: Received, w0: float, w1: float, n: int) -> dict[str, float]:
 def in_process_times(arena, size, positions, headings, frames: int = 15) -> tuple[float, float]:
     """Median wall ms of one render with the camera node's settings and of one detection
     of the rendered frame, on the run's exact poses (``positions: (F, N, 2)``)."""
+    from aes_ros.arena_layout import corner_layout
     from sim_bridge.camera_node import arena_camera
     from sim_bridge.camera_render import CameraRenderer
-    from tracker_node.calibration import corner_layout
     from tracker_node.detection import detect_markers
 
     camera = arena_camera(list(arena), size[0], size[1], HFOV)

@@ -21,10 +21,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from aes_ros import scenario
+from aes_ros.arena_layout import corner_layout
 from aes_ros.markers import RobotMarker
 from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import calibrate, corner_layout
+from tracker_node.calibration import calibrate
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses
 

@@ -33,6 +33,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
 from aes_ros.arena import arena_or_none
+from aes_ros.arena_layout import CalibrationError, load_layout
 from aes_ros.camera import PinholeCamera, covering_height, overhead_camera
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
@@ -43,11 +44,10 @@ from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, SENSOR
 from aes_ros.ros.spin import run_node_process
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import CalibrationError, load_layout
 
 #: Floor margin [m] the camera sees beyond the arena on every side, so that a robot at
 #: the arena's edge is still whole in the picture, and the reference markers off its
-#: corners (:func:`tracker_node.calibration.corner_layout`, 0.05 m out, 0.06 m wide)
+#: corners (:func:`aes_ros.arena_layout.corner_layout`, 0.05 m out, 0.06 m wide)
 #: keep 5 cm from the picture's edge (at 1 cm OpenCV missed them).
 VIEW_MARGIN = 0.15
 

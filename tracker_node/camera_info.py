@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from aes_ros.arena_layout import CalibrationError, read_yaml, yaml_mapping
 from aes_ros.camera import CameraInfo
-from tracker_node.calibration import CalibrationError, _mapping, _read_yaml
 
 
 def save_camera_info(info: CameraInfo, path: Path | str, name: str = "arena_camera") -> Path:
@@ -61,7 +61,7 @@ def load_camera_info(path: Path | str) -> tuple[np.ndarray, np.ndarray, tuple[in
     Raises CalibrationError naming the field for a missing, mis-shaped, non-finite or
     impossible value (a focal length <= 0, a model other than plumb_bob).
     """
-    data = _mapping(_read_yaml(path), f"{path}")
+    data = yaml_mapping(read_yaml(path), f"{path}")
 
     def field(name: str, size: int) -> np.ndarray:
         value = data.get(name)

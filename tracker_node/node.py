@@ -39,6 +39,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import CameraInfo, Image
 
+from aes_ros.arena_layout import CalibrationError, load_layout
 from aes_ros.markers import RobotMarker, reference_ids
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
@@ -49,7 +50,7 @@ from aes_ros.ros.diagnostics import TRACKER_STATUS
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
-from tracker_node.calibration import Calibration, CalibrationError, calibrate, load_layout
+from tracker_node.calibration import Calibration, calibrate
 from tracker_node.camera_info import intrinsics, load_camera_info
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses

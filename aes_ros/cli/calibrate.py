@@ -41,7 +41,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     import cv2
 
-    from tracker_node.calibration import CalibrationError, calibrate, load_layout
+    from aes_ros.arena_layout import CalibrationError, load_layout
+    from tracker_node.calibration import calibrate
     from tracker_node.camera_info import load_camera_info
 
     found = [args.out] if os.path.lexists(args.out) else []

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from aes_ros.arena_layout import ArenaLayout, CalibrationError, load_layout
 from aes_ros.camera import covering_height, overhead_camera
 from aes_ros.markers import (
     ReferenceMarker,
@@ -20,13 +21,7 @@ from aes_ros.markers import (
 )
 from aes_ros.model import wrap_angle
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import (
-    ArenaLayout,
-    Calibration,
-    CalibrationError,
-    calibrate,
-    load_layout,
-)
+from tracker_node.calibration import Calibration, calibrate
 from tracker_node.detection import detect_markers
 from tracker_node.pose import marker_poses
 
