@@ -5,8 +5,8 @@ Same problem for all: J (E10) of the paper's combined setup (100 robots, 30 s,
 default box of ``aes-swarm optimize`` (:data:`aes_ros.optim.tuning.DEFAULT_BOUNDS`),
 and the same budget of 300 evaluations, always asked for in batches of 15
 (one simulator call per batch). Seed s of every optimiser uses the same
-Monte-Carlo seed set (:func:`aes_ros.optim.tuning.mc_seeds`), so within a seed the
-optimisers face exactly the same function.
+Monte-Carlo seed set (run r of seed s uses s·runs + r: the runs numbered from 0,
+disjoint per seed), so within a seed the optimisers face exactly the same function.
 
 * TCACS: the paper's options (15 ants, roulette, γ = 0.5, m = 2).
 * CMA-ES (``cma`` package): population 15, 20 generations, in box coordinates
@@ -44,6 +44,8 @@ import numpy as np
 from scipy.optimize import differential_evolution
 
 from aes_ros import scenario
+from aes_ros.cli.deprecated import add_deprecated
+from aes_ros.cli.options import MAX_RUNS, number_type
 from aes_ros.optim import study, tcacs, tuning
 from aes_ros.optim.cost import MonteCarloCost
 
@@ -137,10 +139,18 @@ OPTIMIZERS: dict[str, Callable[[Budget, np.ndarray, np.ndarray, int], None]] = {
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seeds", type=int, default=10)
-    parser.add_argument("--mc", type=int, default=10)
+    parser.add_argument("--seeds", type=int, default=10, help="optimiser seeds 0 … N-1")
+    parser.add_argument(
+        "--runs", type=number_type(int, 1, MAX_RUNS), default=10, metavar="N",
+        help="Monte-Carlo runs per candidate (default 10)",
+    )  # fmt: skip
+    add_deprecated(parser, "--mc", "--runs", prog="compare_optimizers")
     parser.add_argument("--held-out", type=int, default=20, help="fresh runs per returned x")
-    parser.add_argument("--out", type=Path, default=Path("docs/study"))
+    parser.add_argument(
+        "--out", type=Path, default=Path("out/compare_optimizers"), metavar="DIR",
+        help="the directory this command writes (default out/compare_optimizers; "
+        "docs/study holds the published one)",
+    )  # fmt: skip
     parser.add_argument("--only", nargs="*", default=list(OPTIMIZERS))
     parser.add_argument(
         "--from-json", action="store_true", help="only rebuild the table from OUT/optimizers.json"
@@ -159,7 +169,8 @@ def main() -> None:
     records: dict[str, list[dict]] = {name: [] for name in args.only}
     for seed in range(args.seeds):
         for name in args.only:
-            cost = MonteCarloCost(sc, seeds=tuning.mc_seeds(seed, args.mc), names=names)
+            seeds = tuning.mc_seeds(seed * args.runs, args.runs)
+            cost = MonteCarloCost(sc, seeds=seeds, names=names)
             f = Budget(cost)
             start = time.perf_counter()
             OPTIMIZERS[name](f, lo, hi, seed)
@@ -200,7 +211,7 @@ def main() -> None:
 
 def markdown(records: dict[str, list[dict]], names: tuple[str, ...], args) -> str:
     lines = [
-        f"Budget {BUDGET} evaluations (batches of {BATCH}), {args.mc} Monte-Carlo runs per "
+        f"Budget {BUDGET} evaluations (batches of {BATCH}), {args.runs} Monte-Carlo runs per "
         f"candidate, {args.seeds} seeds per optimiser; mean ± sd over the seeds. "
         f"'J found' is on the run's own seeds, 'J held-out' re-simulates the returned gains "
         f"on {args.held_out} fresh seeds (the same for all).",

@@ -2,7 +2,7 @@
 
 Examples::
 
-    aes-swarm optimize --out out/tune                      # the paper's run: 300 evals x 10 MC
+    aes-swarm optimize --out out/tune                      # the paper's run: 300 evals x 10 runs
     aes-swarm optimize --w1 0.1 --w2 -1 --bounds k=1:3 --seed 2 --out out/tune-force
 
 Default search box: alpha=0.001:0.5, beta=0.01:5, k=0.5:5 (see aes_ros.optim.tuning
@@ -17,13 +17,13 @@ from pathlib import Path
 
 from aes_ros.cli.options import (
     MAX_EVALS,
-    add_monte_carlo_option,
+    add_runs_option,
     add_scenario_options,
+    add_seed_option,
     check_tcacs_options,
     load_scenario,
     number_type,
     scenario_label,
-    seed_type,
 )
 from aes_ros.optim import tcacs, tuning
 from aes_ros.params import ParameterError
@@ -48,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=evals,
         help=f"evaluation budget (default {evals})",
     )
-    add_monte_carlo_option(p)
+    add_runs_option(p)
     p.add_argument("--w1", type=float, default=None, help="weight of F (default 1/N)")
     p.add_argument("--w2", type=float, default=-1.0, help="weight of psi (default -1)")
     default_box = ",".join(f"{n}={lo:g}:{hi:g}" for n, (lo, hi) in tuning.DEFAULT_BOUNDS.items())
@@ -58,7 +58,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         metavar="alpha=LO:HI,beta=LO:HI,k=LO:HI",
         help=f"search box; names left out keep the default ({default_box})",
     )
-    p.add_argument("--seed", type=seed_type, default=0, help="seeds TCACS and picks the MC seeds")
+    add_seed_option(p, "TCACS's own draws use S too")
     ants, weighting = paper["n_ants"], paper["weighting"]
     p.add_argument("--ants", type=int, default=ants, help=f"ants per iteration ({ants})")
     p.add_argument(
@@ -74,9 +74,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--m", type=float, default=m, help=f"PCA factor m ({m:g})")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument(
-        "--out", type=Path, required=True,
-        help="output directory; one that holds an earlier tuning's outputs is refused unless "
-        "--overwrite",
+        "--out", type=Path, required=True, metavar="DIR",
+        help="the directory this command writes; one that holds an earlier tuning's outputs is "
+        "refused unless --overwrite",
     )  # fmt: skip
     add_overwrite_option(p, "outputs in --out")
 
@@ -99,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
             sc,
             bounds=bounds,
             evals=args.evals,
-            mc=args.mc,
+            mc=args.runs,
             w1=args.w1,
             w2=args.w2,
             seed=args.seed,

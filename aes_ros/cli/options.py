@@ -4,6 +4,12 @@ Every value from the command line is checked here or by the function it is
 passed to; a bad one raises ``argparse.ArgumentTypeError`` or
 :class:`aes_ros.params.ParameterError`, which ``aes-swarm`` turns into exit code 2
 and a one-line message naming the option.
+
+One vocabulary across the commands: ``--runs N`` repeated Monte-Carlo runs of one
+configuration, ``--seed S`` with one rule (Monte-Carlo run r, 0-based, uses seed S + r;
+:data:`SEED_RULE`), ``--duration S`` in seconds (0 = until Ctrl-C only where a run can be
+open-ended), ``--out DIR`` the directory the command writes. Old spellings still parse,
+with a warning (:mod:`aes_ros.cli.deprecated`).
 """
 
 from __future__ import annotations
@@ -15,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from aes_ros import scenario
+from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.optim import tcacs
 from aes_ros.params import ParameterError
 
@@ -65,15 +72,49 @@ def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
 #: Monte-Carlo runs per candidate (the paper's N_MC, SPEC §3.1).
 DEFAULT_MC = 10
 
+#: The one seed rule of every command with ``--seed`` and ``--runs``.
+SEED_RULE = "Monte-Carlo run r (0-based) of a configuration uses seed S + r"
 
-def add_monte_carlo_option(p: argparse.ArgumentParser) -> None:
-    """``--mc``: Monte-Carlo runs per candidate, with common random numbers."""
+
+def add_runs_option(
+    p: argparse.ArgumentParser, default: int = DEFAULT_MC, what: str = "per candidate"
+) -> None:
+    """``--runs``: Monte-Carlo runs of one configuration, with common random numbers (the
+    old spelling ``--mc`` still parses, with a warning)."""
     p.add_argument(
-        "--mc",
+        "--runs",
         type=number_type(int, 1, MAX_RUNS),
-        default=DEFAULT_MC,
-        help=f"Monte-Carlo runs per candidate ({DEFAULT_MC})",
+        default=default,
+        metavar="N",
+        help=f"Monte-Carlo runs {what}, with common random numbers (default {default})",
     )
+    add_deprecated(p, "--mc", "--runs")
+
+
+def add_seed_option(p: argparse.ArgumentParser, what: str = "") -> None:
+    """``--seed S``, its help stating :data:`SEED_RULE`."""
+    extra = f"; {what}" if what else ""
+    p.add_argument(
+        "--seed", type=seed_type, default=0, metavar="S",
+        help=f"{SEED_RULE} (default 0){extra}",
+    )  # fmt: skip
+
+
+#: Commands where ``--duration 0`` means "until Ctrl-C".
+OPEN_ENDED = "launch, bench_soak"
+
+
+def duration_type(open_ended: bool) -> Callable[[str], float]:
+    """``--duration S`` in seconds: > 0, or also 0 (= until Ctrl-C) if ``open_ended``."""
+    parse = number_type(float, 0)
+
+    def check(text: str) -> float:
+        value = float(parse(text))
+        if value == 0 and not open_ended:
+            raise argparse.ArgumentTypeError(f"need > 0 (0 = until Ctrl-C only for {OPEN_ENDED})")
+        return value
+
+    return check
 
 
 def scenario_label(args: argparse.Namespace) -> str:

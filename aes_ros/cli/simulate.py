@@ -16,10 +16,11 @@ from aes_ros import report, simulator
 from aes_ros.cli.options import (
     MAX_RUNS,
     add_scenario_options,
+    add_seed_option,
+    duration_type,
     load_scenario,
     number_type,
     scenario_label,
-    seed_type,
 )
 from aes_ros.params import PARAMS
 from aes_ros.previous_run import SIMULATE_OUTPUTS, add_overwrite_option, check_out_dir, remove
@@ -30,27 +31,29 @@ PROGRESS_ABOVE = 2e7
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     add_scenario_options(p)
-    p.add_argument("--seed", type=seed_type, default=0, help="seed of run 0; run b uses seed + b")
+    add_seed_option(p)
     p.add_argument(
         "--runs",
         type=number_type(int, 1, MAX_RUNS),
         default=1,
-        help="independent Monte-Carlo runs B (metrics.csv holds their mean)",
+        metavar="N",
+        help="independent Monte-Carlo runs (metrics.csv holds their mean; default 1)",
     )
     p.add_argument(
         "--dt", type=float, default=None, help=f"time step [s] ({PARAMS['dt'].allowed()})"
     )
     p.add_argument(
         "--duration",
-        type=float,
+        type=duration_type(open_ended=False),
         default=None,
+        metavar="S",
         help=f"run length [s] ({PARAMS['duration'].allowed()})",
     )
     p.add_argument("--no-noise", action="store_true", help="switch both noise terms off")
     p.add_argument(
-        "--out", type=Path, required=True,
-        help="output directory; one that holds an earlier run's outputs is refused unless "
-        "--overwrite",
+        "--out", type=Path, required=True, metavar="DIR",
+        help="the directory this command writes; one that holds an earlier run's outputs is "
+        "refused unless --overwrite",
     )  # fmt: skip
     add_overwrite_option(p, "outputs in --out")
 

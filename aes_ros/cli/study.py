@@ -14,10 +14,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.cli.options import (
     MAX_EVALS,
     MAX_RUNS,
-    add_monte_carlo_option,
+    add_runs_option,
     add_scenario_options,
     check_tcacs_options,
     load_scenario,
@@ -36,7 +37,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         default=evals,
         help=f"evaluations per TCACS run ({evals})",
     )
-    add_monte_carlo_option(p)
+    add_runs_option(p)
     p.add_argument(
         "--restarts",
         type=number_type(int, 1, MAX_RUNS),
@@ -44,13 +45,18 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="TCACS runs per setting (3)",
     )
     p.add_argument(
-        "--eval-runs",
+        "--held-out",
         type=number_type(int, 1, MAX_RUNS),
         default=50,
-        help="held-out runs per gain set (50)",
+        metavar="N",
+        help="held-out Monte-Carlo runs per gain set, seeds disjoint from tuning (default 50)",
     )
+    add_deprecated(p, "--eval-runs", "--held-out")
     p.add_argument("--no-progress", action="store_true", help="no progress output")
-    p.add_argument("--out", type=Path, required=True, help="output directory")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="DIR",
+        help="the directory this command writes (docs/study holds the published one)",
+    )  # fmt: skip
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,9 +69,9 @@ def run(args: argparse.Namespace) -> int:
         args.out,
         sc,
         evals=args.evals,
-        mc=args.mc,
+        mc=args.runs,
         restarts=args.restarts,
-        eval_runs=args.eval_runs,
+        eval_runs=args.held_out,
         progress=not args.no_progress,
     )
     best = result["table"][2]

@@ -2,7 +2,7 @@
 
 Examples::
 
-    aes-swarm sweep --param alpha=0.01:0.2:20 --param k=log:0.05:5:20 --mc 10 --out out/ak
+    aes-swarm sweep --param alpha=0.01:0.2:20 --param k=log:0.05:5:20 --runs 10 --out out/ak
     aes-swarm sweep --param d_r=0:2:9 --param robots=25,100,400 --duration 60 --transient 20 \\
         --out out/noise
     aes-swarm sweep --lhs 200 --param alpha=0.01:0.5 --param beta=0.1:5 --param k=log:0.05:5 \\
@@ -21,11 +21,12 @@ import sys
 from pathlib import Path
 
 from aes_ros.cli.options import (
-    add_monte_carlo_option,
+    add_runs_option,
     add_scenario_options,
+    add_seed_option,
+    duration_type,
     load_scenario,
     number_type,
-    seed_type,
 )
 from aes_ros.params import PARAMS
 from aes_ros.sweep.cluster import TLS_OPTIONS, Scheduler, scheduler
@@ -44,9 +45,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="N Latin-hypercube samples of the --param ranges instead of the grid",
     )  # fmt: skip
     add_scenario_options(p)
-    add_monte_carlo_option(p)
+    add_runs_option(p, what="per point")
     p.add_argument(
-        "--duration", type=number_type(float, 0), default=None,
+        "--duration", type=duration_type(open_ended=False), default=None, metavar="S",
         help=f"run length [s] ({PARAMS['duration'].allowed()})",
     )  # fmt: skip
     p.add_argument(
@@ -58,10 +59,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="robots failing mid-run: e.g. 0.1@15 stops 10 %% of them (the same ones in "
         "every run) at t = 15 s",
     )  # fmt: skip
+    add_seed_option(p, "the Latin hypercube's draws use S too")
     p.add_argument(
-        "--seed", type=seed_type, default=0, help="first Monte-Carlo seed (and the LHS's)"
-    )
-    p.add_argument("--out", type=Path, required=True, help="output directory (resumable)")
+        "--out", type=Path, required=True, metavar="DIR",
+        help="the directory this command writes (resumable)",
+    )  # fmt: skip
     add_scheduler_options(p)
     p.add_argument(
         "--workers", type=number_type(int, 1), default=None, metavar="K",
@@ -118,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
         base,
         axes,
         points(axes, args.lhs, args.seed),
-        mc=args.mc,
+        mc=args.runs,
         seed=args.seed,
         transient=args.transient,
         lhs=args.lhs,

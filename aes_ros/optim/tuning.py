@@ -49,11 +49,8 @@ PAPER_GAINS = {"alpha": 0.066, "beta": 0.97, "k": 1.28}
 
 
 def mc_seeds(seed: int, n_mc: int) -> list[int]:
-    """The common random numbers of a tuning run with ``seed``: seeds seed·n_mc … seed·n_mc+n_mc−1.
-
-    Different ``seed`` s give disjoint seed sets (independent repetitions).
-    """
-    return [seed * n_mc + i for i in range(n_mc)]
+    """The common random numbers of a tuning run: Monte-Carlo run r uses seed + r."""
+    return [seed + r for r in range(n_mc)]
 
 
 def parse_bounds(text: str, base: Mapping[str, tuple[float, float]] = DEFAULT_BOUNDS) -> Bounds:
@@ -123,6 +120,7 @@ def tune(
     w1: float | None = None,
     w2: float = -1.0,
     seed: int = 0,
+    mc_seed: int | None = None,
     n_ants: int = tcacs.PAPER_OPTIONS["n_ants"],
     weighting: str = tcacs.PAPER_OPTIONS["weighting"],
     gamma: float = tcacs.PAPER_OPTIONS["gamma"],
@@ -132,13 +130,14 @@ def tune(
 ) -> TuneOutcome:
     """Tune the gains named in ``bounds`` with TCACS on J (E10); the paper's options by default.
 
-    The other gains stay at the scenario's values. ``seed`` seeds TCACS and
-    picks the Monte-Carlo seeds (:func:`mc_seeds`). The numba kernel is warmed
-    up before the timer starts. With ``progress`` a tqdm bar shows the
-    evaluations and the best-so-far J.
+    The other gains stay at the scenario's values. ``seed`` seeds TCACS; Monte-Carlo
+    run r uses seed ``mc_seed`` + r (:func:`mc_seeds`; ``mc_seed`` defaults to
+    ``seed``). The numba kernel is warmed up before the timer starts. With
+    ``progress`` a tqdm bar shows the evaluations and the best-so-far J.
     """
     names = tuple(bounds)
-    cost = MonteCarloCost(scenario, w1=w1, w2=w2, seeds=mc_seeds(seed, mc), names=names)
+    first = seed if mc_seed is None else mc_seed
+    cost = MonteCarloCost(scenario, w1=w1, w2=w2, seeds=mc_seeds(first, mc), names=names)
     warmup = warm_up(scenario)
     bar = tqdm(
         total=tcacs.n_iterations(evals, n_ants) * n_ants,

@@ -118,7 +118,7 @@ def test_tune_improves_on_its_seeds_and_respects_the_box(small: scenario.Scenari
     res = out.result
     assert res.nfev == 60 and res.x.shape == (2,)
     assert res.fun < np.min(res.history_fun[:15])  # better than the first iteration's best
-    assert out.cost.seeds == [2, 3]  # mc_seeds(1, 2)
+    assert out.cost.seeds == [1, 2]  # run r uses seed + r
     assert set(out.best) == {"alpha", "beta"}
 
 
@@ -149,7 +149,7 @@ SMALL_ARGS = ["--set", "rows=3", "--set", "cols=3", "--set", "duration=2"]
 
 def test_optimize_command_writes_its_outputs(tmp_path: Path, capsys) -> None:
     out = tmp_path / "tune"
-    rc = main(["optimize", *SMALL_ARGS, "--evals", "30", "--mc", "2", "--no-progress",
+    rc = main(["optimize", *SMALL_ARGS, "--evals", "30", "--runs", "2", "--no-progress",
                "--seed", "4", "--out", str(out)])  # fmt: skip
     assert rc == 0
     line = capsys.readouterr().out.strip()
@@ -157,7 +157,7 @@ def test_optimize_command_writes_its_outputs(tmp_path: Path, capsys) -> None:
     result = json.loads((out / "result.json").read_text())
     assert set(result["best"]) == {"alpha", "beta", "k"}
     assert result["evaluations"] == 30 and result["wall_time_s"] > 0
-    assert result["settings"]["mc_seeds"] == [8, 9]
+    assert result["settings"]["mc_seeds"] == [4, 5]  # --seed 4: run r uses 4 + r
     assert result["settings"]["w1"] == pytest.approx(1 / 9)
     with open(out / "history.csv") as fh:
         rows = list(csv.DictReader(fh))
@@ -173,7 +173,7 @@ def test_optimize_command_writes_its_outputs(tmp_path: Path, capsys) -> None:
         (["--bounds", "k=:"], "--bounds"),
         (["--evals", "10"], "--evals"),
         (["--evals", "0"], "--evals"),
-        (["--mc", "0"], "--mc"),
+        (["--runs", "0"], "--runs"),
         (["--ants", "1"], "--ants"),
         (["--ants", "20", "--evals", "19"], "--evals"),
         (["--weighting", "wheel"], "--weighting"),
@@ -195,9 +195,9 @@ def test_optimize_bad_input_exits_2_naming_the_field(
     [
         (["--evals", "10"], "--evals"),  # fewer than one iteration of the paper's 15 ants
         (["--evals", "0"], "--evals"),
-        (["--mc", "0"], "--mc"),
+        (["--runs", "0"], "--runs"),
         (["--restarts", "0"], "--restarts"),
-        (["--eval-runs", "0"], "--eval-runs"),
+        (["--held-out", "0"], "--held-out"),
     ],
 )
 def test_study_bad_input_exits_2_naming_the_field(
@@ -223,8 +223,8 @@ def test_paper_options_are_the_defaults_of_tune_and_the_cli() -> None:
 
 
 def test_study_command_smoke(tmp_path: Path, capsys) -> None:
-    rc = main(["study", *SMALL_ARGS, "--evals", "15", "--mc", "1", "--restarts", "1",
-               "--eval-runs", "2", "--no-progress", "--out", str(tmp_path)])  # fmt: skip
+    rc = main(["study", *SMALL_ARGS, "--evals", "15", "--runs", "1", "--restarts", "1",
+               "--held-out", "2", "--no-progress", "--out", str(tmp_path)])  # fmt: skip
     assert rc == 0
     data = json.loads((tmp_path / "study.json").read_text())
     assert [r["gains"] for r in data["table"]][:2] == [
