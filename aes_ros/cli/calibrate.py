@@ -2,10 +2,10 @@
 
 Examples::
 
-    aes-swarm calibrate --image frame.png --layout arena.yaml --camera-info camera.yaml \
+    aes-swarm calibrate --image frame.png --arena-layout arena.yaml --camera-info camera.yaml \
         --out calibration.yaml
 
-``--layout`` says where the reference markers lie on the floor (and the robots' marker
+``--arena-layout`` says where the reference markers lie on the floor (and the robots' marker
 height); ``--camera-info`` gives the camera's intrinsics in the ROS camera_info YAML
 layout (what ``camera_calibration`` writes). The calibration maps image points to the
 arena at the markers' height (:mod:`tracker_node.calibration`); its residuals are
@@ -21,12 +21,18 @@ import os
 import sys
 from pathlib import Path
 
+from aes_ros.cli.deprecated import add_deprecated
+from aes_ros.params import ParameterError
 from aes_ros.previous_run import add_overwrite_option, refuse, remove
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--image", type=Path, required=True, help="a frame (PNG, JPEG, …)")
-    p.add_argument("--layout", type=Path, required=True, help="arena.yaml: reference markers")
+    p.add_argument(
+        "--arena-layout", type=Path, default=None, metavar="FILE",
+        help="arena.yaml: where the reference markers lie on the floor (required)",
+    )  # fmt: skip
+    add_deprecated(p, "--layout", "--arena-layout")
     p.add_argument(
         "--camera-info", type=Path, required=True, metavar="FILE",
         help="the camera's intrinsics (ROS camera_info YAML)",
@@ -45,10 +51,12 @@ def run(args: argparse.Namespace) -> int:
     from tracker_node.calibration import calibrate
     from tracker_node.camera_info import load_camera_info
 
+    if args.arena_layout is None:  # not argparse's required=: the old --layout gives it too
+        raise ParameterError("--arena-layout FILE is required")
     found = [args.out] if os.path.lexists(args.out) else []
     refuse(found, f"--out {args.out}", args.overwrite, "an earlier calibration")
     try:
-        layout = load_layout(args.layout)
+        layout = load_layout(args.arena_layout)
         K, dist, size = load_camera_info(args.camera_info)
         image = cv2.imread(str(args.image), cv2.IMREAD_GRAYSCALE)
         if image is None:

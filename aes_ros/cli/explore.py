@@ -2,12 +2,12 @@
 
 Examples::
 
-    aes-swarm explore pareto                  # docs/explore/pareto/pareto.png, …
+    aes-swarm explore pareto                  # out/explore/pareto/pareto.png, …
     aes-swarm explore noise --workers 2
     aes-swarm explore robustness --scheduler tls://10.0.0.5:8786 \\
         --tls-ca ca.pem --tls-cert client.pem --tls-key client-key.pem
-    aes-swarm explore perception              # docs/explore/perception/…
-    aes-swarm explore ladder                  # docs/explore/ladder/…
+    aes-swarm explore perception --out docs/explore/perception   # the published figures
+    aes-swarm explore ladder                  # out/explore/ladder/…
 
 - ``pareto``: the Pareto front of (F̄/N, ψ̄) over (α, β, k) and where the paper's,
   the untuned and the TCACS gains lie on it (:mod:`aes_ros.studies.pareto`);
@@ -23,10 +23,11 @@ Examples::
   a time, and take about 40 minutes).
 
 The sweeps' tables go to ``--work`` (resumable: an interrupted study goes on where
-it stopped), the figures, CSV and JSON to ``--out``. Unlike ``launch`` or ``simulate``,
-an earlier study's ``--out`` is replaced without ``--overwrite``: it holds the figures of
-docs/explore, regenerated whole from the tables (and kept in git), and the runs
-themselves, in ``--work``, are resumed, not lost.
+it stopped), the figures, CSV and JSON to ``--out`` (default ``out/explore/STUDY``; the
+published ones with ``--out docs/explore/STUDY``). Unlike ``launch`` or ``simulate``,
+an earlier study's ``--out`` is replaced without ``--overwrite``: its figures are
+regenerated whole from the tables, and the runs themselves, in ``--work``, are resumed,
+not lost.
 """
 
 from __future__ import annotations
@@ -40,13 +41,17 @@ from aes_ros.cli.options import number_type
 from aes_ros.cli.sweep import add_scheduler_options, scheduler_from_args
 
 STUDIES = ("pareto", "noise", "robustness", "perception", "ladder")
+#: Where a study writes without ``--out``: never into the repository's docs/.
+DEFAULT_OUT = Path("out/explore")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("study", choices=STUDIES, help="which study")
     p.add_argument(
-        "--out", type=Path, default=None, help="figures and tables (default docs/explore/STUDY)"
-    )
+        "--out", type=Path, default=None, metavar="DIR",
+        help="the directory this command writes: figures and tables (default "
+        "out/explore/STUDY, or STUDY_quick; the published ones: --out docs/explore/STUDY)",
+    )  # fmt: skip
     p.add_argument(
         "--work", type=Path, default=Path("out/explore"),
         help="the sweeps' tables, kept to resume (default out/explore)",
@@ -68,8 +73,9 @@ def run(args: argparse.Namespace) -> int:
 
     if args.scheduler is not None and args.workers is not None:
         raise SweepSpecError("--scheduler and --workers: give one of them")
-    out = args.out if args.out is not None else Path("docs/explore") / args.study
-    work = args.work / (f"{args.study}_quick" if args.quick else args.study)
+    name = f"{args.study}_quick" if args.quick else args.study
+    out = args.out if args.out is not None else DEFAULT_OUT / name
+    work = args.work / name
     cluster = scheduler_from_args(args)
     where = Where(work, cluster, args.workers, progress=not args.no_progress)
     study = importlib.import_module(f"aes_ros.studies.{args.study}")

@@ -25,18 +25,20 @@ import sys
 from pathlib import Path
 
 from aes_ros import scenario
+from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.cli.options import (
     add_scenario_options,
+    add_seed_option,
+    duration_type,
     load_scenario,
     number_type,
     scenario_label,
-    seed_type,
 )
 from aes_ros.previous_run import add_overwrite_option
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
 from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_FROM, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-from aes_ros.ros.launch.plan import ON_FAILURE, TRACKING, WORLDS
+from aes_ros.ros.launch.config import ON_FAILURE, TRACKING, WORLDS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -55,13 +57,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="kinematic: bodies follow cmd_vel exactly; dynamic: wheel motors and collisions",
     )  # fmt: skip
     p.add_argument(
-        "--duration", type=number_type(float, 0), default=None,
+        "--duration", type=duration_type(open_ended=True), default=None, metavar="S",
         help="sim time [s] to run after every robot moves (default: the scenario's "
         "duration; 0: until Ctrl-C)",
     )  # fmt: skip
-    p.add_argument(
-        "--seed", type=seed_type, default=0, help="seed of the initial state (as simulate)"
-    )
+    add_seed_option(p, "a launch is run 0, seeded S")
     p.add_argument(
         "--record", type=Path, default=None, metavar="FILE.mcap",
         help="record /swarm/*, /clock and every cmd_vel to a ROS 2 MCAP bag; where an "
@@ -87,9 +87,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "ones as new ones start (default: all)",
     )  # fmt: skip
     p.add_argument(
-        "--out", type=Path, default=None,
-        help="output directory (plots, metrics, logs); one that holds an earlier run's "
-        "outputs is refused unless --overwrite",
+        "--out", type=Path, default=None, metavar="DIR",
+        help="the directory this command writes (plots, metrics, logs); one that holds an "
+        "earlier run's outputs is refused unless --overwrite",
     )  # fmt: skip
     add_overwrite_option(p, "outputs in --out and recording at --record")
     p.add_argument("--gui", action="store_true", help="show the pybullet GUI")
@@ -162,9 +162,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "…). The bridge's exact poses go to /sim/ground_truth/poses (the outputs' source)",
     )  # fmt: skip
     p.add_argument(
-        "--camera", type=_pixels, default=(1280, 960), metavar="WxH",
-        help="the simulated camera's resolution (default 1280x960)",
+        "--camera-size", type=_pixels, default=(1280, 960), metavar="WxH",
+        help="the simulated camera's image size (default 1280x960)",
     )  # fmt: skip
+    add_deprecated(p, "--camera", "--camera-size")
     p.add_argument(
         "--camera-rate", type=number_type(float, 0.1, 240.0), default=20.0, metavar="HZ",
         help="the simulated camera's frames per second of sim time (default 20)",
@@ -248,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
             on_failure=args.on_failure,
             dashboard=args.dashboard,
             tracking=args.tracking,
-            camera_size=args.camera,
+            camera_size=args.camera_size,
             camera_rate=args.camera_rate,
             world=args.world,
             record_images=args.record_images,

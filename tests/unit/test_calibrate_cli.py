@@ -42,7 +42,8 @@ def lab(tmp_path: Path) -> dict[str, Path]:
 
 def calibrate(lab: dict, **change: Path) -> int:
     paths = {**lab, **change}
-    return main(["calibrate", "--image", str(paths["frame"]), "--layout", str(paths["layout"]),
+    return main(["calibrate", "--image", str(paths["frame"]),
+                 "--arena-layout", str(paths["layout"]),
                  "--camera-info", str(paths["info"]), "--out", str(paths["out"])])  # fmt: skip
 
 

@@ -172,7 +172,7 @@ def test_calibrate_refuses_an_existing_calibration(
     out = tmp_path / "calibration.yaml"
     out.write_text("the lab's calibration")
     none = str(tmp_path / "none")
-    args = ["calibrate", "--image", none, "--layout", none, "--camera-info", none]
+    args = ["calibrate", "--image", none, "--arena-layout", none, "--camera-info", none]
     assert main([*args, "--out", str(out)]) == 2
     assert f"--out {out} holds an earlier calibration" in capsys.readouterr().err
     assert out.read_text() == "the lab's calibration"
