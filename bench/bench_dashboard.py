@@ -50,7 +50,7 @@ from helpers.dashboard import origin_of, printed_url, socket_url
 
 from aes_ros import scenario
 from aes_ros.ros import interface as names
-from aes_ros.ros.launch.plan import ros_args, write_scenario
+from aes_ros.ros.launch.param_files import ros_args, write_scenario
 
 BIN = Path(sys.executable).parent
 TARGET_CPU_PCT, TARGET_FPS_1000 = 10.0, 20.0

@@ -204,7 +204,8 @@ def measure(
     run: int = 1,
 ) -> Row:
     from aes_ros.ros.launch import LaunchConfig, Launcher
-    from aes_ros.ros.launch.plan import resolved_discovery, resolved_layout
+    from aes_ros.ros.launch.config import resolved_discovery
+    from aes_ros.ros.launch.layout import resolved_layout
 
     sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
     config = LaunchConfig(
@@ -259,14 +260,11 @@ def measure_naive(robots: int, rate: float, warmup: float, window: float) -> Row
     10 robots per process) instead of ``aes-robot-host``."""
     import tempfile
 
+    from aes_ros.ros.launch.commands import bridge_command, supervisor_command
+    from aes_ros.ros.launch.config import LaunchConfig
+    from aes_ros.ros.launch.layout import split_robots
     from aes_ros.ros.launch.monitor import Monitor
-    from aes_ros.ros.launch.plan import (
-        LaunchConfig,
-        bridge_command,
-        split_robots,
-        supervisor_command,
-        write_scenario,
-    )
+    from aes_ros.ros.launch.param_files import write_scenario
     from aes_ros.ros.launch.preflight import refuse_other_swarm
     from aes_ros.ros.launch.processes import ProcessSet, fastdds_environment
 

@@ -367,7 +367,7 @@ def centred_arena(sc, size: tuple[float, float]) -> tuple[float, float, float, f
 def measure(n: int, size, arena_size, warmup: float, window: float, seed: int) -> dict:
     """One configuration, robots moving on the tracker's poses (module docstring)."""
     from aes_ros.ros.launch import LaunchConfig, Launcher
-    from aes_ros.ros.launch.plan import tracking_arena
+    from aes_ros.ros.launch.tracking_arena import tracking_arena
 
     sc = scenario_mod.load("combined").with_robots(n)
     arena = centred_arena(sc, arena_size) if arena_size else tracking_arena(sc)
@@ -422,7 +422,8 @@ def measure(n: int, size, arena_size, warmup: float, window: float, seed: int) -
 def closed_loop_run(n: int, arena, seed: int, seconds: float, camera, tracking: bool,
                     out: Path) -> dict[str, np.ndarray]:  # fmt: skip
     """One ``aes-swarm launch`` of the combined scenario; its metrics.csv as columns."""
-    from aes_ros.ros.launch.plan import executable, ros_value
+    from aes_ros.ros.launch.param_files import ros_value
+    from aes_ros.ros.programs import executable
 
     argv = [
         executable("aes-swarm"), "launch", "--setup", "combined", "--robots", str(n),

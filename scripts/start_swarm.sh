@@ -80,13 +80,13 @@ if [ -z "${FASTRTPS_DEFAULT_PROFILES_FILE:-}${FASTDDS_DEFAULT_PROFILES_FILE:-}" 
 fi
 
 # The robot count as the scenario sees it (0 = the scenario's own formation) and the
-# layout auto of launch (aes_ros.ros.launch.plan.auto_layout). Every user value reaches
+# layout auto of launch (aes_ros.ros.launch.layout.auto_layout). Every user value reaches
 # Python as an argument (sys.argv), never as part of its code.
 SCENARIO_INFO='
 import sys
 from aes_ros import scenario
 from aes_ros.params import ParameterError
-from aes_ros.ros.launch.plan import auto_layout
+from aes_ros.ros.launch.layout import auto_layout
 setup, robots = sys.argv[1], int(sys.argv[2])
 try:
     sc = scenario.load(setup)

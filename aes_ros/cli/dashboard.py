@@ -44,7 +44,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from aes_ros.ros.launch.plan import ros_args, write_scenario
+    from aes_ros.ros.launch.param_files import ros_args, write_scenario
     from dashboard_node.access import TOKEN_VARIABLE, TokenError, given_token, read_token_file
     from dashboard_node.node import main
 

@@ -50,6 +50,8 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 
+from aes_ros.ros.programs import LaunchError, executable
+
 #: What ``--discovery`` may ask for.
 DISCOVERY_MODES = ("auto", "simple", "server")
 #: ``auto`` uses a discovery server from this many robots. Measured on two cores
@@ -248,8 +250,6 @@ def server_argv(port: int, listen: str, python: str = sys.executable) -> list[st
 
 def server_program() -> str:
     """``fast-discovery-server`` of this environment (next to the interpreter), else PATH."""
-    from aes_ros.ros.launch.plan import LaunchError, executable  # plan imports this module
-
     try:
         return executable(SERVER_PROGRAM)
     except LaunchError:

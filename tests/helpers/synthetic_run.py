@@ -56,7 +56,7 @@ def main() -> None:
     parser.add_argument("--flush-every", type=float, default=0.05)
     parser.add_argument("--file-size-limit", type=int, default=0)
     args = parser.parse_args()
-    from aes_ros.ros.launch.plan import write_scenario
+    from aes_ros.ros.launch.param_files import write_scenario
 
     sc = synthetic_scenario(args.robots)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -4,7 +4,7 @@
 aes-sim-bridge, aes-supervisor and an observer in one namespace, one
 aes-robot-host with 8 of the 16 robots in each of two others, joined by veth
 pairs to a Linux bridge (10.77.0.0/24, addresses only inside the namespaces).
-The command lines are the launcher's (:func:`aes_ros.ros.launch.plan.node_commands`,
+The command lines are the launcher's (:func:`aes_ros.ros.launch.commands.node_commands`,
 layout per-core with two hosts), each run with ``ip netns exec``. Fast DDS uses
 UDPv4 only: processes in different namespaces still share /dev/shm, so the
 default shared-memory transport would bypass the veths and the loss rule. The
@@ -44,12 +44,9 @@ import pytest
 from helpers import netns
 
 from aes_ros import report, scenario
-from aes_ros.ros.launch.plan import (
-    LaunchConfig,
-    node_commands,
-    write_robot_params,
-    write_scenario,
-)
+from aes_ros.ros.launch.commands import node_commands
+from aes_ros.ros.launch.config import LaunchConfig
+from aes_ros.ros.launch.param_files import write_robot_params, write_scenario
 from aes_ros.ros.launch.processes import executable
 
 # alone: network namespaces and injected packet loss, convergence judged in time

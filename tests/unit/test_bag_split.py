@@ -36,7 +36,8 @@ from aes_ros.ros.bag import (
     segment_path,
     sequences_path,
 )
-from aes_ros.ros.launch.plan import LaunchConfig, start_order
+from aes_ros.ros.launch.commands import start_order
+from aes_ros.ros.launch.config import LaunchConfig
 from aes_ros.ros.launch.preflight import expected_bytes
 from aes_ros.ros.launch.recovery import RestartCommands
 

@@ -15,8 +15,9 @@ import pytest
 
 from aes_ros import scenario
 from aes_ros.ros import discovery as dds
+from aes_ros.ros.launch.commands import start_order
+from aes_ros.ros.launch.config import LaunchConfig, resolved_discovery
 from aes_ros.ros.launch.events import EventLog
-from aes_ros.ros.launch.plan import LaunchConfig, resolved_discovery, start_order
 from aes_ros.ros.launch.processes import ProcessSet
 from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision, ready_signal

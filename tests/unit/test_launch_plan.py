@@ -1,5 +1,6 @@
-"""The launch plan (:mod:`aes_ros.ros.launch.plan`): how each layout spreads the robots
-over processes and names them, as pure command lines (nothing is started)."""
+"""The launch plan (:mod:`aes_ros.ros.launch.commands`, :mod:`aes_ros.ros.launch.layout`):
+how each layout spreads the robots over processes and names them, as pure command lines
+(nothing is started)."""
 
 from __future__ import annotations
 
@@ -7,14 +8,10 @@ import pytest
 
 from aes_ros import scenario
 from aes_ros.ros import interface as names
-from aes_ros.ros.launch.plan import (
-    LaunchConfig,
-    dashboard_command,
-    node_commands,
-    ros_args,
-    split_robots,
-    start_order,
-)
+from aes_ros.ros.launch.commands import dashboard_command, node_commands, start_order
+from aes_ros.ros.launch.config import LaunchConfig
+from aes_ros.ros.launch.layout import split_robots
+from aes_ros.ros.launch.param_files import ros_args
 
 
 def test_layouts_split_robots_and_name_hosts(tmp_path) -> None:
@@ -38,7 +35,7 @@ def test_auto_layout_uses_one_host_while_it_carries_the_load(tmp_path) -> None:
     """auto: one robot host up to 20000 robot-steps per second, and on two cores always
     (the measured cheaper and faster-starting layout there); one per core above it on
     a bigger machine."""
-    from aes_ros.ros.launch.plan import resolved_layout
+    from aes_ros.ros.launch.layout import resolved_layout
 
     def layout(robots: int, hz: float, cores: int) -> str:
         sc = scenario.load("combined", {"dt": 1.0 / hz}).with_robots(robots)

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import ProcessSet, die_with_parent, start_time
 from aes_ros.ros.launch.reaper import alive, read_pid_file, reap
+from aes_ros.ros.programs import LaunchError
 
 
 def test_a_wait_reads_only_this_process_s_output(tmp_path: Path) -> None:

@@ -29,7 +29,7 @@ from aes_ros.report import (
     rebuild_run_outputs,
     trajectory_samples,
 )
-from aes_ros.ros.launch.plan import write_scenario
+from aes_ros.ros.launch.param_files import write_scenario
 from aes_ros.run_writer import RunWriter
 from aes_ros.trajectory_file import is_sealed
 

@@ -3,11 +3,11 @@
 What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
 
 1. writes the effective scenario to ``<work>/scenario.yaml`` and the per-robot
-   parameters to ``<work>/robots.yaml`` (:mod:`aes_ros.ros.launch.plan`), so every
+   parameters to ``<work>/robots.yaml`` (:mod:`aes_ros.ros.launch.param_files`), so every
    process reads the same values;
 2. starts, each in its own process group with the caller's ROS environment
    (:mod:`aes_ros.ros.launch.processes`), in the order of
-   :func:`~aes_ros.ros.launch.plan.start_order`: with a discovery server of its own
+   :func:`~aes_ros.ros.launch.commands.start_order`: with a discovery server of its own
    (``discovery``; :mod:`aes_ros.ros.discovery`) that server, whose address every other
    process gets and which ``ros_env.sh`` gives a user's shell; the recorder (with ``record``),
    ``aes-sim-bridge``, with ``--tracking camera`` the overhead camera and the tracker,
@@ -69,15 +69,11 @@ from aes_ros.report import progress
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch import preflight
+from aes_ros.ros.launch.commands import ProcessSpec, describe, start_order
+from aes_ros.ros.launch.config import LaunchConfig, resolved_discovery
 from aes_ros.ros.launch.events import Event, EventLog, fault_summary
 from aes_ros.ros.launch.monitor import DISCOVERY_WAIT, TIME_EPS, Monitor
-from aes_ros.ros.launch.plan import (
-    LaunchConfig,
-    LaunchError,
-    ProcessSpec,
-    describe,
-    resolved_discovery,
-    start_order,
+from aes_ros.ros.launch.param_files import (
     work_directory,
     write_layout,
     write_robot_params,
@@ -87,6 +83,7 @@ from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
 from aes_ros.ros.launch.reaper import start_reaper
 from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
+from aes_ros.ros.programs import LaunchError
 from aes_ros.ros.spin import stop_signals
 from aes_ros.run_writer import RunWriter
 

@@ -33,8 +33,8 @@ from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array
 from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.discovery import Discovery, set_environ
-from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import fastdds_environment
+from aes_ros.ros.programs import LaunchError
 from aes_ros.ros.qos import LATCHED
 
 #: Tolerance on sim-time comparisons [s].

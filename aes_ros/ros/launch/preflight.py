@@ -11,7 +11,8 @@ from pathlib import Path
 
 from aes_ros.previous_run import LAUNCH_OUTPUTS, check_out_dir, refuse, refuse_foreign
 from aes_ros.ros.bag import parse_split, recording_files
-from aes_ros.ros.launch.plan import LaunchConfig, LaunchError
+from aes_ros.ros.launch.config import LaunchConfig
+from aes_ros.ros.programs import LaunchError
 
 #: Bytes per sample per robot of the trajectory: 3 float64 in trajectory.h5, written
 #: once (uncompressed; its partly filled last chunks are within the 2 MB below).

@@ -17,8 +17,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from aes_ros.ros.launch.plan import LaunchError, executable
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
+from aes_ros.ros.programs import LaunchError, executable
 
 
 @dataclass

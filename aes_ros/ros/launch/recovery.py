@@ -18,7 +18,8 @@ from typing import Any
 
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import bag_segments, next_segment
-from aes_ros.ros.launch.plan import ProcessSpec, recorder_command, ros_value
+from aes_ros.ros.launch.commands import ProcessSpec, recorder_command
+from aes_ros.ros.launch.param_files import ros_value
 from aes_ros.world_state import WorldState
 
 

@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.events import EventLog, LogEvents, exit_text
-from aes_ros.ros.launch.plan import LaunchError
 from aes_ros.ros.launch.processes import Child, ProcessSet
 from aes_ros.ros.launch.recovery import Backoff, RestartPolicy
+from aes_ros.ros.programs import LaunchError
 
 
 class RunCannotContinueError(LaunchError):
