@@ -6,78 +6,16 @@ sideways), so it is the robot's position in ``/swarm/poses`` and ``odom``. The
 body cylinder's centre is ``axle_offset`` ahead of it; the caster ball is in
 front of the body centre.
 
-Every quantity is a field of :class:`MonaGeometry`, so e.g. the 12.8 mm wheel
+Every quantity is a field of :class:`MonaGeometry` (defined in
+:mod:`aes_ros.mona.geometry`, shared with the robot driver), so e.g. the 12.8 mm wheel
 of one public CAD model is ``MonaGeometry(wheel_radius=0.0128)``.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
-import numpy as np
-
-
-@dataclass(frozen=True)
-class MonaGeometry:
-    """Mona's dimensions [m], masses [kg] and motor limits (SPEC §5 defaults)."""
-
-    body_radius: float = 0.040  #: body cylinder, Ø 80 mm
-    body_height: float = 0.035  #: body cylinder height
-    mass: float = 0.1  #: whole robot (body + wheels + caster)
-    wheel_radius: float = 0.015  #: 12.8 mm in one public CAD model
-    wheel_width: float = 0.005
-    wheel_mass: float = 0.005  #: each wheel (part of ``mass``)
-    wheel_separation: float = 0.078  #: distance between the wheels' mid-planes
-    axle_offset: float = 0.018  #: axle behind the body centre
-    caster_radius: float = 0.005  #: caster ball
-    caster_offset: float = 0.025  #: caster ball centre ahead of the body centre
-    caster_mass: float = 0.001  #: (part of ``mass``)
-    ground_clearance: float = 0.003  #: gap under the body cylinder
-    max_wheel_speed: float = 9.0  #: [rad/s]
-    max_wheel_torque: float = 0.02  #: motor torque limit [N m]
-    wheel_friction: float = 1.0  #: lateral (Coulomb) friction of tyres on the floor
-    body_friction: float = 0.3  #: friction of body on body (robot-robot contacts)
-
-    @property
-    def body_z(self) -> float:
-        """Height of the body centre above the ground [m]."""
-        return self.ground_clearance + 0.5 * self.body_height
-
-    @property
-    def max_linear_speed(self) -> float:
-        """Top forward speed [m/s] (both wheels at ``max_wheel_speed``)."""
-        return self.max_wheel_speed * self.wheel_radius
-
-    @property
-    def max_angular_speed(self) -> float:
-        """Top turn rate [rad/s] (wheels at ± ``max_wheel_speed``)."""
-        return 2.0 * self.max_linear_speed / self.wheel_separation
-
-    def wheel_speeds(
-        self, linear: np.ndarray, angular: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Wheel angular speeds for body commands, saturated at ``max_wheel_speed``.
-
-        Parameters
-        ----------
-        linear : (N,) forward speed u [m/s]. angular : (N,) turn rate [rad/s], CCW.
-
-        Returns
-        -------
-        left, right : (N,) [rad/s], positive = rolling forward. When a wheel would
-        exceed the limit both are scaled down by the same factor, so the robot
-        keeps the commanded curvature and only slows down.
-        """
-        half = 0.5 * self.wheel_separation * np.asarray(angular, dtype=float)
-        linear = np.asarray(linear, dtype=float)
-        left = (linear - half) / self.wheel_radius
-        right = (linear + half) / self.wheel_radius
-        peak = np.maximum(np.abs(left), np.abs(right))
-        scale = np.where(
-            peak > self.max_wheel_speed, self.max_wheel_speed / np.maximum(peak, 1e-12), 1.0
-        )
-        return left * scale, right * scale
+from aes_ros.mona.geometry import MonaGeometry
 
 
 def _cylinder_inertia(mass: float, radius: float, length: float) -> tuple[float, float, float]:
