@@ -1,10 +1,7 @@
-"""Who may use the dashboard: its token, the ``Host`` and ``Origin`` it answers, and how
+"""Who may use the dashboard: the ``Host`` and ``Origin`` it answers, and how
 often refusals and controls may come (pure: no aiohttp, no rclpy).
 
-- The token is at least :data:`MIN_TOKEN_CHARS` characters; one is made up
-  (:func:`new_token`, 192 bits) unless :data:`TOKEN_VARIABLE` or a 0600 file named by
-  :data:`TOKEN_FILE_VARIABLE` gives one (:func:`given_token`). It never goes on a
-  command line, where every user of the machine reads it (``ps``).
+- The token: :mod:`aes_ros.ros.dashboard_token` (the launch hands it over too).
 - :class:`Site` says which ``Host`` headers and ``Origin`` values a server bound to one
   address and port answers: a page from any other origin (another port included) or a
   DNS-rebound name gets HTTP 403.
@@ -18,83 +15,15 @@ docs/dashboard.md has the table of who can do what.
 from __future__ import annotations
 
 import ipaddress
-import os
-import secrets
 import socket
-import stat
 from collections import deque
-from collections.abc import Mapping
-from urllib.parse import quote
 
-#: The environment variable holding the token, and the one naming a file that holds it.
-TOKEN_VARIABLE = "AES_DASHBOARD_TOKEN"
-TOKEN_FILE_VARIABLE = "AES_DASHBOARD_TOKEN_FILE"
-MIN_TOKEN_CHARS = 16
-#: Random bytes of a made-up token (192 bits; 32 URL-safe characters).
-TOKEN_BYTES = 24
 LOOPBACK = ("127.0.0.1", "localhost", "::1")
 WILDCARD = ("0.0.0.0", "::", "")
 #: At most this many viewers (WebSockets) at once; the next one gets HTTP 503.
 MAX_VIEWERS = 32
 #: Control messages per second of all viewers together, and the burst.
 CONTROL_RATE = (20.0, 40)
-
-
-class TokenError(ValueError):
-    """A token that is refused; the text says why (never the token itself)."""
-
-
-def new_token() -> str:
-    """A fresh random token of :data:`TOKEN_BYTES` bytes, URL-safe."""
-    return secrets.token_urlsafe(TOKEN_BYTES)
-
-
-def check_token(token: str, source: str) -> str:
-    """``token`` if it is usable: at least MIN_TOKEN_CHARS visible ASCII characters."""
-    if len(token) < MIN_TOKEN_CHARS:
-        raise TokenError(
-            f"{source}: a token of {len(token)} characters; at least {MIN_TOKEN_CHARS} "
-            f"(e.g. python -c 'import secrets; print(secrets.token_urlsafe({TOKEN_BYTES}))')"
-        )
-    if not all(33 <= ord(c) <= 126 for c in token):
-        raise TokenError(f"{source}: the token may hold visible ASCII characters only")
-    return token
-
-
-def read_token_file(path: str | os.PathLike) -> str:
-    """The token in the file ``path`` (one line), which must be a regular file of this
-    user that nobody else may read or write (``chmod 600``)."""
-    source = f"token file {path}"
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
-    except OSError as exc:
-        raise TokenError(f"{source}: {exc.strerror}") from None
-    with os.fdopen(fd, "rb") as fh:
-        info = os.fstat(fh.fileno())
-        if not stat.S_ISREG(info.st_mode):
-            raise TokenError(f"{source}: not a regular file")
-        if info.st_uid != os.geteuid():
-            raise TokenError(f"{source}: owned by uid {info.st_uid}, not by this user")
-        if info.st_mode & 0o077:
-            mode = stat.S_IMODE(info.st_mode)
-            raise TokenError(f"{source}: mode {mode:o}; others may read it (chmod 600)")
-        text = fh.read(4096).decode("ascii", errors="replace")
-    return check_token(text.strip(), source)
-
-
-def given_token(env: Mapping[str, str]) -> str | None:
-    """The token the environment gives (:data:`TOKEN_VARIABLE`, else the file named by
-    :data:`TOKEN_FILE_VARIABLE`); None if neither is set. TokenError if it is unusable."""
-    if env.get(TOKEN_VARIABLE):
-        return check_token(env[TOKEN_VARIABLE], TOKEN_VARIABLE)
-    if env.get(TOKEN_FILE_VARIABLE):
-        return read_token_file(env[TOKEN_FILE_VARIABLE])
-    return None
-
-
-def with_token(url: str, token: str) -> str:
-    """``url`` (the dashboard's address, ending in ``/``) with ``?token=…``."""
-    return f"{url}?token={quote(token, safe='')}"
 
 
 def is_loopback(host: str) -> bool:

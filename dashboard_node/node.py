@@ -223,7 +223,7 @@ def main(args: list[str] | None = None, *, print_url: bool = False) -> int:
     """``aes-dashboard``: the node spins in a thread, the web server in the main one,
     until SIGINT or SIGTERM. Exit code 0 then; 1 if it cannot start (a bad
     parameter or token, the port taken) or its node fails. The token comes from the
-    environment (:func:`dashboard_node.access.given_token`) or is made up; the URL
+    environment (:func:`aes_ros.ros.dashboard_token.given_token`) or is made up; the URL
     with it goes to stdout if made up or ``print_url``."""
     import asyncio
     import os
@@ -234,8 +234,8 @@ def main(args: list[str] | None = None, *, print_url: bool = False) -> int:
     from rclpy.experimental import EventsExecutor
     from rclpy.signals import SignalHandlerOptions
 
+    from aes_ros.ros.dashboard_token import TokenError, given_token
     from aes_ros.ros.spin import STARTUP_ERRORS, node_help, wants_help
-    from dashboard_node.access import TokenError, given_token
     from dashboard_node.server import Dashboard
 
     if wants_help(args):

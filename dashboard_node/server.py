@@ -35,14 +35,13 @@ from typing import Any
 from aiohttp import WSMsgType, web
 
 from aes_ros.ros import interface as names
+from aes_ros.ros.dashboard_token import new_token, with_token
 from dashboard_node.access import (
     CONTROL_RATE,
     MAX_VIEWERS,
     Failures,
     Site,
     is_loopback,
-    new_token,
-    with_token,
 )
 from dashboard_node.controls import ControlError, RateLimit, SetGain, parse_control
 from dashboard_node.node import CALL_TIMEOUT, DashboardNode

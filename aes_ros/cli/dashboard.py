@@ -44,8 +44,13 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from aes_ros.ros.dashboard_token import (
+        TOKEN_VARIABLE,
+        TokenError,
+        given_token,
+        read_token_file,
+    )
     from aes_ros.ros.launch.param_files import ros_args, write_scenario
-    from dashboard_node.access import TOKEN_VARIABLE, TokenError, given_token, read_token_file
     from dashboard_node.node import main
 
     if args.token is not None:

@@ -269,7 +269,7 @@ def run(args: argparse.Namespace) -> int:
     if args.dashboard is not None:  # its token from the environment, if given: usable?
         import os
 
-        from dashboard_node.access import TokenError, given_token
+        from aes_ros.ros.dashboard_token import TokenError, given_token
 
         try:
             given_token(os.environ)

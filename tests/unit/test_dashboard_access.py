@@ -27,9 +27,11 @@ import pytest
 from aiohttp.test_utils import TestClient, TestServer
 
 from aes_ros import cli
+from aes_ros.ros import dashboard_token
+from aes_ros.ros.dashboard_token import TokenError
 from aes_ros.ros.node_tools import ThrottledWarnings
-from dashboard_node import access, server
-from dashboard_node.access import Failures, Site, TokenError
+from dashboard_node import server
+from dashboard_node.access import Failures, Site
 from dashboard_node.server import HEADERS, MAX_VIEWERS, Dashboard
 
 TOKEN = "a-token-of-the-owner-0123456789"
@@ -249,16 +251,16 @@ def test_a_stale_cookie_is_dropped() -> None:
 
 
 def test_made_up_tokens_have_128_bits_and_short_ones_are_refused(tmp_path: Path) -> None:
-    made = {access.new_token() for _ in range(100)}
+    made = {dashboard_token.new_token() for _ in range(100)}
     assert len(made) == 100
     assert all(len(base64.urlsafe_b64decode(t + "==")) * 8 >= 128 for t in made)
     assert Dashboard(StandIn(), "127.0.0.1", 0).token not in made  # type: ignore[arg-type]
     with pytest.raises(TokenError, match="15 characters; at least 16"):
-        access.given_token({access.TOKEN_VARIABLE: "x" * 15})
-    assert access.given_token({access.TOKEN_VARIABLE: "x" * 16}) == "x" * 16
+        dashboard_token.given_token({dashboard_token.TOKEN_VARIABLE: "x" * 15})
+    assert dashboard_token.given_token({dashboard_token.TOKEN_VARIABLE: "x" * 16}) == "x" * 16
     with pytest.raises(TokenError, match="visible ASCII"):
-        access.check_token("x" * 16 + " y", "test")
-    assert access.given_token({}) is None
+        dashboard_token.check_token("x" * 16 + " y", "test")
+    assert dashboard_token.given_token({}) is None
 
 
 def test_a_token_file_must_be_private(tmp_path: Path) -> None:
@@ -266,15 +268,15 @@ def test_a_token_file_must_be_private(tmp_path: Path) -> None:
     path.write_text(TOKEN + "\n")
     path.chmod(0o644)
     with pytest.raises(TokenError, match="mode 644; others may read it"):
-        access.given_token({access.TOKEN_FILE_VARIABLE: str(path)})
+        dashboard_token.given_token({dashboard_token.TOKEN_FILE_VARIABLE: str(path)})
     path.chmod(0o600)
-    assert access.given_token({access.TOKEN_FILE_VARIABLE: str(path)}) == TOKEN
+    assert dashboard_token.given_token({dashboard_token.TOKEN_FILE_VARIABLE: str(path)}) == TOKEN
     link = tmp_path / "link"
     link.symlink_to(path)
     with pytest.raises(TokenError, match="token file"):
-        access.read_token_file(link)
+        dashboard_token.read_token_file(link)
     with pytest.raises(TokenError, match="No such file"):
-        access.read_token_file(tmp_path / "missing")
+        dashboard_token.read_token_file(tmp_path / "missing")
 
 
 def test_the_cli_takes_no_token_on_its_command_line(
@@ -282,17 +284,17 @@ def test_the_cli_takes_no_token_on_its_command_line(
 ) -> None:
     assert cli.main(["dashboard", "--token", TOKEN]) == 2
     err = capsys.readouterr().err
-    assert "--token" in err and access.TOKEN_VARIABLE in err and "--token-file" in err
-    monkeypatch.setenv(access.TOKEN_VARIABLE, "short")
+    assert "--token" in err and dashboard_token.TOKEN_VARIABLE in err and "--token-file" in err
+    monkeypatch.setenv(dashboard_token.TOKEN_VARIABLE, "short")
     assert cli.main(["dashboard"]) == 2
     assert "5 characters; at least 16" in capsys.readouterr().err
-    monkeypatch.delenv(access.TOKEN_VARIABLE)
+    monkeypatch.delenv(dashboard_token.TOKEN_VARIABLE)
     loose = tmp_path / "token"
     loose.write_text(TOKEN)
     loose.chmod(0o640)
     assert cli.main(["dashboard", "--token-file", str(loose)]) == 2
     assert "chmod 600" in capsys.readouterr().err
-    monkeypatch.setenv(access.TOKEN_VARIABLE, "short")
+    monkeypatch.setenv(dashboard_token.TOKEN_VARIABLE, "short")
     launch = ["launch", "--robots", "4", "--dashboard", "0", "--out", str(tmp_path / "out")]
     assert cli.main(launch) == 2
     assert "at least 16" in capsys.readouterr().err
@@ -404,4 +406,4 @@ def test_the_ready_line_has_no_token() -> None:
     dashboard = Dashboard(StandIn(), "127.0.0.1", 8080, TOKEN)  # type: ignore[arg-type]
     assert dashboard.address == "http://127.0.0.1:8080/"
     assert dashboard.url == f"http://127.0.0.1:8080/?token={TOKEN}"
-    assert os.environ.get(access.TOKEN_VARIABLE) != TOKEN
+    assert os.environ.get(dashboard_token.TOKEN_VARIABLE) != TOKEN
