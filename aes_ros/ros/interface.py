@@ -8,6 +8,8 @@ that pure modules (the launch plan, the pybullet world) can use them too.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 # --- frames (REP-105) ------------------------------------------------------------------
 
 #: The world frame of every pose, force and marker.
@@ -132,3 +134,72 @@ RECORDER_CANNOT_WRITE = 3
 def recorder_receiving(topic: str) -> str:
     """What the recorder prints at the first message of ``topic``."""
     return f"receiving {topic}"
+
+
+# --- the interface at a glance (docs/interface.md is generated from these) ---------------
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """One topic or service: its name, type, who provides it, who uses it, what it is."""
+
+    name: str
+    type: str
+    source: str
+    users: str
+    description: str
+
+
+#: Every topic of a running swarm. ``mona_<i>`` topics exist once per robot.
+TOPICS: tuple[Endpoint, ...] = (
+    Endpoint(f"/mona_<i>/{CMD_VEL}", "geometry_msgs/msg/Twist", "robot node i",
+             "bridge or robot driver", "wheel command: linear.x [m/s], angular.z [rad/s]"),
+    Endpoint(f"/mona_<i>/{ODOM}", "nav_msgs/msg/Odometry", "bridge",
+             "robot nodes (neighbor_source odom)", "robot i's pose and twist, frame odom"),
+    Endpoint(f"/mona_<i>/{AES_FORCE}", "geometry_msgs/msg/Vector3Stamped", "robot node i",
+             "its neighbours' robot nodes, recorder", "robot i's elastic force F_i (E2)"),
+    Endpoint(CLOCK, "rosgraph_msgs/msg/Clock", "bridge", "every node (use_sim_time)",
+             "sim time"),
+    Endpoint(POSES, "geometry_msgs/msg/PoseArray", "bridge or tracker",
+             "robot nodes, supervisor, dashboard, recorder",
+             "every robot's pose, index = robot id, frame odom"),
+    Endpoint(GROUND_TRUTH_POSES, "geometry_msgs/msg/PoseArray", "bridge (with a tracker)",
+             "simulated camera, recorder", "the exact poses, for evaluation only"),
+    Endpoint(DESIRED_VELOCITY, "geometry_msgs/msg/TwistStamped", "supervisor",
+             "robot nodes, dashboard, launcher", "v_d (linear.x/y) and ω (angular.z); latched"),
+    Endpoint(ROTATION_CENTER, "geometry_msgs/msg/PointStamped", "supervisor",
+             "robot nodes, dashboard", "the rotation centre x_c; latched"),
+    Endpoint(ENABLED, "std_msgs/msg/Bool", "supervisor",
+             "robot nodes, robot drivers, dashboard, launcher",
+             "whether the swarm may move; latched"),
+    Endpoint(CMD, "geometry_msgs/msg/Twist", "aes-swarm steer, dashboard, you", "supervisor",
+             "the swarm command: linear.x/y = direction, angular.z = ω"),
+    Endpoint(ALIGNMENT, "std_msgs/msg/Float64", "supervisor", "dashboard, recorder",
+             "force alignment ψ (E8)"),
+    Endpoint(HEADING_ORDER, "std_msgs/msg/Float64", "supervisor", "dashboard, recorder",
+             "heading order ψ_heading (E7)"),
+    Endpoint(TOTAL_FORCE, "std_msgs/msg/Float64", "supervisor", "dashboard, recorder",
+             "total elastic force F (E9)"),
+    Endpoint(MARKERS, "visualization_msgs/msg/MarkerArray", "dashboard", "RViz2, Foxglove",
+             "the swarm drawn: robots, springs, centroid trail"),
+    Endpoint(CAMERA_IMAGE, "sensor_msgs/msg/Image", "simulated camera or a real one",
+             "tracker", "mono8 frames, stamp = exposure time"),
+    Endpoint(CAMERA_INFO, "sensor_msgs/msg/CameraInfo", "simulated camera or a real one",
+             "tracker", "the camera's intrinsics and distortion"),
+    Endpoint(DIAGNOSTICS, "diagnostic_msgs/msg/DiagnosticArray", "bridge, tracker",
+             "robot nodes, dashboard", "which robots are silent or unseen; latched"),
+    Endpoint(RECORDER_PROGRESS, "rosgraph_msgs/msg/Clock", "recorder",
+             "bridge (wait_for_recorder)", "stamp of the latest /swarm/poses written"),
+)  # fmt: skip
+
+#: Every service of a running swarm.
+SERVICES: tuple[Endpoint, ...] = (
+    Endpoint(ENABLE, "std_srvs/srv/SetBool", "supervisor", "dashboard, you",
+             "enable (true) or stop (false) the swarm"),
+    Endpoint(SIM_RESET, "std_srvs/srv/Trigger", "bridge", "dashboard",
+             "put every robot back at its start pose"),
+    Endpoint(SIM_PAUSE, "std_srvs/srv/SetBool", "bridge", "dashboard",
+             "pause (true) or resume (false) the simulation"),
+    Endpoint(SIM_STATS, "std_srvs/srv/Trigger", "bridge", "launcher, benchmarks",
+             "the bridge's step statistics as JSON in message"),
+)  # fmt: skip

@@ -1,0 +1,173 @@
+"""Write docs/cli.md and docs/interface.md from the code that defines them.
+
+docs/cli.md comes from the ``aes-swarm`` parser; docs/interface.md from the tables
+of ``aes_ros/ros/interface.py`` and the parameters each node declares: every node
+is built once in this process, with discovery off (it reaches no other process),
+and its declarations are recorded. Run it after changing any of them::
+
+    .venv/bin/python scripts/make_reference.py          # rewrite both files
+    .venv/bin/python scripts/make_reference.py --check  # exit 1 if either is stale
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from aes_ros.cli.reference import (  # noqa: E402
+    GENERATED,
+    cell,
+    cli_markdown,
+    console_scripts,
+    endpoints_markdown,
+)
+
+CLI_DOC = ROOT / "docs" / "cli.md"
+INTERFACE_DOC = ROOT / "docs" / "interface.md"
+#: The node class behind each console script that starts one node.
+NODES = {
+    "aes-sim-bridge": "sim_bridge.node:SimBridgeNode",
+    "aes-supervisor": "supervisor_node.node:SupervisorNode",
+    "aes-robot-node": "robot_node.node:RobotNode",
+    "aes-robot-host": "robot_node.host:RobotHostNode",
+    "aes-dashboard": "dashboard_node.node:DashboardNode",
+    "aes-arena-camera": "sim_bridge.camera_node:ArenaCameraNode",
+    "aes-tracker": "tracker_node.node:TrackerNode",
+}
+#: Declared by rclpy for every node.
+RCLPY_OWN = {"use_sim_time", "start_type_description_service"}
+
+
+def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str, Any, Any]]]:
+    """The node name and ``(name, default, descriptor)`` of every parameter the node
+    class ``target`` declares, in order (the default as the code gives it, with the
+    ``combined`` scenario)."""
+    from rclpy.parameter import Parameter
+
+    module, name = target.split(":")
+    cls = getattr(importlib.import_module(module), name)
+    seen: list[tuple[str, Any, Any]] = []
+    made: list[Any] = []
+
+    class Recording(cls):  # type: ignore[misc, valid-type]
+        def declare_parameters(self, namespace: str, parameters: Any, ignore_override=False):
+            made[:] = [self]
+            for p in parameters:
+                seen.append((p[0], p[1] if len(p) > 1 else None, p[2] if len(p) > 2 else None))
+            return super().declare_parameters(namespace, parameters, ignore_override)
+
+    # One robot keeps a host quick; the recorded defaults are the code's, not overrides.
+    overrides = [Parameter("num_robots", value=1)] if "host" in module else []
+    try:
+        made.append(Recording(context=context, parameter_overrides=overrides))
+    except Exception:  # the tracker refuses to start without a calibration
+        pass
+    node_name = made[0].get_name() if made else name
+    for node in made[:1]:
+        node.destroy_node()
+    return node_name, seen
+
+
+def _type_and_default(value: Any) -> tuple[str, str]:
+    """The parameter's type and its default as table cells (a type alone: no default)."""
+    from rclpy.parameter import Parameter
+
+    kind = value if isinstance(value, Parameter.Type) else None
+    if kind is None:
+        kind = Parameter.Type.from_parameter_value(value)
+    default = "" if isinstance(value, Parameter.Type) or value == "" else f"`{cell(value)}`"
+    return kind.name.lower().replace("_array", "[]"), default
+
+
+def parameters_markdown() -> list[str]:
+    """One table per node: parameter, type, default, description."""
+    import rclpy
+    from rclpy.context import Context
+
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "OFF"
+    os.environ.pop("ROS_DISCOVERY_SERVER", None)
+    os.environ.pop("ROS_STATIC_PEERS", None)
+    context = Context()
+    rclpy.init(args=[], context=context)
+    lines = [
+        "## Node parameters",
+        "",
+        "Set at start with `--ros-args -p name:=value`, at runtime with a parameter "
+        "service unless read-only; an invalid value is refused with a reason and the old "
+        "one stays. Defaults are those of the `combined` scenario: the model parameters "
+        "(`alpha`, `beta`, `k`, …) default to the scenario's values (`aes-swarm params`). "
+        "Every node also has rclpy's `use_sim_time`.",
+        "",
+    ]
+    try:
+        scripts = console_scripts()
+        for script, target in NODES.items():
+            if script not in scripts:
+                continue
+            node_name, declared = declared_parameters(target, context)
+            lines += [
+                f"### {script}",
+                "",
+                f"Node `{node_name}`.",
+                "",
+                "| parameter | type | default | what |",
+                "|---|---|---|---|",
+            ]
+            for name, default, descriptor in declared:
+                if name in RCLPY_OWN:
+                    continue
+                text = descriptor.description if descriptor is not None else ""
+                ro = " (read-only)" if descriptor is not None and descriptor.read_only else ""
+                kind, shown = _type_and_default(default)
+                lines.append(f"| `{name}` | {kind} | {shown} | {cell(text)}{ro} |")
+            lines.append("")
+    finally:
+        rclpy.try_shutdown(context=context)
+    return lines
+
+
+def interface_markdown() -> str:
+    """The text of docs/interface.md."""
+    lines = [
+        "# ROS interface",
+        "",
+        GENERATED,
+        "",
+        "The topics, services and node parameters of a running swarm. `/mona_<i>` is "
+        "robot i's namespace. Message types are the standard ROS 2 ones.",
+        "",
+        *endpoints_markdown(),
+        *parameters_markdown(),
+    ]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write the references, or with ``--check`` name the stale ones (exit 1)."""
+    parser = argparse.ArgumentParser(description="Write docs/cli.md and docs/interface.md.")
+    parser.add_argument("--check", action="store_true", help="only compare; exit 1 if stale")
+    args = parser.parse_args(argv)
+    stale = []
+    for path, make in ((CLI_DOC, cli_markdown), (INTERFACE_DOC, interface_markdown)):
+        text = make()
+        if path.exists() and path.read_text() == text:
+            continue
+        stale.append(str(path.relative_to(ROOT)))
+        if not args.check:
+            path.write_text(text)
+            print(f"wrote {path.relative_to(ROOT)}")
+    if args.check and stale:
+        print(f"stale: {', '.join(stale)}; run: python scripts/make_reference.py", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
