@@ -1,4 +1,4 @@
-"""``aes-swarm``: the user's front door (SPEC §7 "Starting it").
+"""``aes-swarm``: the user's front door (docs/design.md#starting).
 
 Every subcommand is registered in :data:`COMMANDS` below; its module of this
 package has ``add_arguments(parser)`` and ``run(args) -> int``, and the first
@@ -23,7 +23,7 @@ COMMANDS: dict[str, str] = {
     "optimize": "tune alpha, beta, k with TCACS on the Monte-Carlo cost J (E10)",
     "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
     "sweep": "the offline simulator over a grid or Latin hypercube of parameters (local or Dask)",
-    "explore": "studies on sweeps: the Pareto front, the noise phase diagram, robustness",
+    "explore": "studies on sweeps: pareto, noise, robustness, perception, ladder",
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
     "dashboard": "watch and steer the running swarm in the browser",
@@ -33,10 +33,10 @@ COMMANDS: dict[str, str] = {
 
 #: Longer descriptions shown by ``aes-swarm <command> --help``.
 DESCRIPTIONS: dict[str, str] = {
-    "simulate": "Run a scenario offline (batched numpy/numba simulator, SPEC §1.4) and "
+    "simulate": "Run a scenario offline (batched numpy/numba simulator, docs/design.md#motion) and "
     "write trajectory.h5, metrics.csv, snapshots.png and metrics.png to --out.",
-    "optimize": "Tune the gains with TCACS (SPEC §6) on J (E10): every candidate is "
-    "simulated with the same --mc seeds (common random numbers), all ants x all runs "
+    "optimize": "Tune the gains with TCACS (docs/design.md#tcacs) on J (E10): every candidate is "
+    "simulated with the same --runs seeds (common random numbers), all ants x all runs "
     "of an iteration in one batch. Writes result.json, history.csv and convergence.png "
     "to --out.",
     "study": "Reproduce the paper's study: TCACS with the weights (1/N,-1), (10/N,-1), "
