@@ -108,7 +108,8 @@ def commands_of(path: Path) -> list[Command]:
             if re.match(r"\s+[a-z]+\s{2,}[^-\s#]", rest):
                 kind = "listing"
             elif any(w in ELISIONS or w.startswith(("[", "{")) for w in argv) or "[--" in rest:
-                kind = "flags"
+                kind = "flags"  # a synopsis: "|" is an alternative there, not a pipe
+                argv = rest.split("#", 1)[0].replace("|", " ").split()
             else:
                 kind = "parse"
             found.append(Command(path, number, body, tuple(argv), kind))
@@ -201,7 +202,7 @@ def test_a_bad_flag_is_caught(tmp_path: Path) -> None:
     doc.write_text(
         "```bash\naes-swarm simulate --no-such-flag 3 \\\n  --out out/x   # a comment\n"
         "aes-swarm launch --robots <N> --out DIR\n"
-        "aes-swarm steer [--wrong X]\n```\n"
+        "aes-swarm steer [--omega W | --wrong X]\n```\n"
     )
     bad, good, synopsis = commands_of(doc)
     assert (bad.line, bad.argv) == (2, ("simulate", "--no-such-flag", "3", "--out", "out/x"))
