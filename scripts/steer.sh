@@ -15,8 +15,6 @@
 set -euo pipefail
 
 BIN=$(dirname "$(command -v aes-swarm || echo ./aes-swarm)")
-PY=${BIN}/python
-[ -x "$PY" ] || PY=python3
 
 case ${1:-} in
     north) exec "$BIN/aes-swarm" steer --direction 0 1 ;;
@@ -26,28 +24,8 @@ case ${1:-} in
     ccw) exec "$BIN/aes-swarm" steer --omega 0.5 ;;
     cw) exec "$BIN/aes-swarm" steer --omega -0.5 ;;
     still) exec "$BIN/aes-swarm" steer --direction 0 0 --omega 0 ;;
-    on | off)
-        # /swarm/enable (std_srvs/SetBool) with rclpy, as `ros2 service call` would.
-        exec "$PY" - "$1" <<'EOF'
-import sys
-
-import rclpy
-from std_srvs.srv import SetBool
-
-rclpy.init()
-node = rclpy.create_node("aes_enable")
-client = node.create_client(SetBool, "/swarm/enable")
-if not client.wait_for_service(timeout_sec=15.0):
-    sys.exit("steer.sh: no /swarm/enable service (is the swarm running in this ROS_DOMAIN_ID?)")
-future = client.call_async(SetBool.Request(data=sys.argv[1] == "on"))
-rclpy.spin_until_future_complete(node, future, timeout_sec=15.0)
-result = future.result()
-print(f"/swarm/enable {sys.argv[1]}: {result.message if result else 'no answer'}")
-node.destroy_node()
-rclpy.try_shutdown()
-sys.exit(0 if result is not None and result.success else 1)
-EOF
-        ;;
+    on) exec "$BIN/aes-swarm" steer --enable ;;
+    off) exec "$BIN/aes-swarm" steer --disable ;;
     *)
         if [ $# -eq 3 ]; then
             exec "$BIN/aes-swarm" steer --direction "$1" "$2" --omega "$3"

@@ -3,7 +3,7 @@
 The same public interface any ROS tool uses (``ros2 topic pub /swarm/cmd``): a
 ``geometry_msgs/Twist`` with linear.{x,y} = v_d and angular.z = ω, then the
 supervisor's latched ``/swarm/desired_velocity`` is read until it shows the new
-command.
+command. :func:`set_enabled` calls ``/swarm/enable`` (std_srvs/SetBool).
 """
 
 from __future__ import annotations
@@ -14,6 +14,7 @@ import rclpy
 from geometry_msgs.msg import Twist, TwistStamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
+from std_srvs.srv import SetBool
 
 from aes_ros.ros import interface as names
 from aes_ros.ros.conversions import drive_to_twist, twist_to_drive
@@ -81,6 +82,37 @@ def steer(
                 pub.publish(cmd)
                 sent = time.monotonic()
         return False, f"steer: the supervisor did not confirm the command within {timeout:g} s"
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def set_enabled(enabled: bool, timeout: float = 15.0) -> tuple[bool, str]:
+    """Call /swarm/enable with ``enabled``; (success, the supervisor's answer or why none)."""
+    context = rclpy.Context()
+    rclpy.init(args=[], context=context, signal_handler_options=SignalHandlerOptions.NO)
+    node = rclpy.create_node(names.STEER_NODE, context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    client = node.create_client(SetBool, names.ENABLE)
+    deadline = time.monotonic() + timeout
+    asked = f"{names.ENABLE} {str(enabled).lower()}"
+    try:
+        while not client.service_is_ready():
+            if time.monotonic() > deadline:
+                return False, (
+                    f"steer: no {names.ENABLE} service within {timeout:g} s; is the swarm "
+                    "running in this ROS_DOMAIN_ID?"
+                )
+            executor.spin_once(timeout_sec=0.05)
+        future = client.call_async(SetBool.Request(data=enabled))
+        executor.spin_until_future_complete(future, max(0.0, deadline - time.monotonic()))
+        answer = future.result() if future.done() else None
+        if answer is None:
+            return False, f"steer: {asked}: no answer within {timeout:g} s"
+        verdict = "" if answer.success else "refused: "
+        return bool(answer.success), f"steer: {asked}: {verdict}{answer.message}"
     finally:
         executor.shutdown()
         node.destroy_node()
