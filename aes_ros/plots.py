@@ -22,14 +22,14 @@ from matplotlib.collections import LineCollection
 from aes_ros.formations import spring_pairs
 
 if TYPE_CHECKING:
-    from aes_ros.report import SnapshotView
+    from aes_ros.snapshot_view import SnapshotView
 
 
 def snapshots(path: Path, view: SnapshotView, neighbors: np.ndarray, title: str = "") -> None:
     """Time-lapse panels like one row of the paper's Fig. 3, one per sample of ``view``.
 
     view : the panels' samples, the centroid's track and the extent of the run
-    (:func:`aes_ros.report.snapshot_view`); neighbors : (N, K) sheet (springs drawn
+    (:func:`aes_ros.snapshot_view.snapshot_view`); neighbors : (N, K) sheet (springs drawn
     as lines). Robots are drawn as oriented arrows, the centroid path up to each
     panel's time as a line. All panels share one scale and extent so the motion is
     visible.

@@ -2,8 +2,8 @@
 
 ``aes-swarm launch`` streams every pose sample into a :class:`RunWriter`:
 
-- ``metrics.csv`` gets its rows (:data:`aes_ros.report.CSV_COLUMNS`, the same
-  numbers :func:`aes_ros.report.metrics_table` gives for the whole run) appended
+- ``metrics.csv`` gets its rows (:data:`aes_ros.metrics_csv.CSV_COLUMNS`, the same
+  numbers :func:`aes_ros.metrics_csv.metrics_table` gives for the whole run) appended
   as whole lines, one ``os.write`` per flush;
 - the trajectory is appended to ``trajectory.h5`` (:mod:`aes_ros.trajectory_file`:
   one HDF5 file written with SWMR; each flush commits its samples);
@@ -16,7 +16,7 @@ the scenario's file it does that in a child process (``python -m aes_ros.report`
 so that a long-lived caller (the launcher) never loads matplotlib and its memory
 stays what it was during the run (``bench/bench_soak.py`` checks it).
 After a crash (even ``kill -9`` of the launcher) ``metrics.csv`` and
-``trajectory.h5`` read back up to the last flush (:func:`aes_ros.report.load_trajectory`),
+``trajectory.h5`` read back up to the last flush (:func:`aes_ros.trajectory.load_trajectory`),
 and ``aes-swarm report DIR`` (:func:`aes_ros.report.rebuild_run_outputs`) writes the
 rest. A write that fails (disk full) stops the writer with :attr:`RunWriter.error`
 set; what was written before stays readable.
@@ -34,15 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from aes_ros.report import (
-    TRAJECTORY_FILE,
-    Trajectory,
-    csv_header,
-    csv_rows,
-    finish_run_outputs,
-    metrics_rows,
-)
+from aes_ros.metrics_csv import csv_header, csv_rows, metrics_rows
+from aes_ros.report import finish_run_outputs
 from aes_ros.scenario import Scenario
+from aes_ros.trajectory import TRAJECTORY_FILE, Trajectory
 from aes_ros.trajectory_file import TrajectoryWriter, error_reason
 
 #: Wall seconds between flushes (at most what a crash can lose, plus one sample).

@@ -16,10 +16,10 @@ from rclpy.parameter import Parameter
 from std_msgs.msg import Bool
 
 from aes_ros.arena import Arena
-from aes_ros.report import load_trajectory
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.qos import COMMAND, LATCHED, SENSOR
+from aes_ros.trajectory import load_trajectory
 
 NODE = "/" + names.SUPERVISOR_NODE
 SUPERVISOR = ["aes-supervisor", "--ros-args", "-p", "scenario:=linear", "-p", "num_robots:=4"]

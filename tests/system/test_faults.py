@@ -34,13 +34,13 @@ from helpers.ros_env import abandoned_shm, assert_no_orphans, find_process, shm_
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from aes_ros.report import load_trajectory
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import bag_segments, read_bags, recording_summary
 from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.launch.processes import FASTDDS_PROFILE
 from aes_ros.ros.qos import COMMAND, LATCHED, STREAM_WRITER
+from aes_ros.trajectory import load_trajectory
 from aes_ros.trajectory_file import is_sealed
 
 N = 16

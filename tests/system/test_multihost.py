@@ -43,7 +43,8 @@ import numpy as np
 import pytest
 from helpers import netns
 
-from aes_ros import report, scenario
+from aes_ros import scenario
+from aes_ros.metrics_csv import metrics_table
 from aes_ros.ros.launch.commands import node_commands
 from aes_ros.ros.launch.config import LaunchConfig
 from aes_ros.ros.launch.param_files import write_robot_params, write_scenario
@@ -144,7 +145,7 @@ def run_swarm(
     t_go = float(data["t_go"])
     keep = times >= t_go - 1e-9
     times, pos, head = times[keep], pos[keep], head[keep]
-    table = report.metrics_table(times, pos, head, cfg.scenario)
+    table = metrics_table(times, pos, head, cfg.scenario)
     tail = times >= times[-1] - TAIL
     supervised = data["alignment"]
     sup_tail = supervised[supervised[:, 0] >= times[-1] - TAIL, 1]

@@ -16,9 +16,9 @@ import pytest
 
 from aes_ros import scenario, simulator
 from aes_ros.perception import camera_period_steps, delay_steps
-from aes_ros.report import load_trajectory
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import read_bag
+from aes_ros.trajectory import load_trajectory
 
 BIN = Path(sys.executable).parent
 SIGMA, DELAY, RATE, MISS = 0.005, 0.1, 10.0, 0.1

@@ -32,10 +32,10 @@ from std_srvs.srv import SetBool
 
 from aes_ros import metrics, scenario, simulator
 from aes_ros.previous_run import LAUNCH_OUTPUTS
-from aes_ros.report import load_trajectory
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import read_bag
 from aes_ros.ros.interface import robot_namespace
+from aes_ros.trajectory import load_trajectory
 
 REPO = Path(__file__).resolve().parents[2]
 BIN = Path(sys.executable).parent

@@ -21,7 +21,7 @@ import dashboard_node.node
 from aes_ros import scenario
 from aes_ros.cli import main
 from aes_ros.params import PARAMS
-from aes_ros.report import load_trajectory
+from aes_ros.trajectory import load_trajectory
 
 
 class Run(NamedTuple):

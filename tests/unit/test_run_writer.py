@@ -22,15 +22,12 @@ import numpy as np
 import pytest
 from helpers.synthetic_run import samples, synthetic_scenario
 
-from aes_ros import plots, report, run_writer, scenario, simulator
-from aes_ros.report import (
-    load_trajectory,
-    metrics_table,
-    rebuild_run_outputs,
-    trajectory_samples,
-)
+from aes_ros import metrics_csv, plots, run_summary, run_writer, scenario, simulator
+from aes_ros.metrics_csv import metrics_table
+from aes_ros.report import rebuild_run_outputs
 from aes_ros.ros.launch.param_files import write_scenario
 from aes_ros.run_writer import RunWriter
+from aes_ros.trajectory import load_trajectory, trajectory_samples
 from aes_ros.trajectory_file import is_sealed
 
 SYNTHETIC = str(Path(helpers.synthetic_run.__file__))
@@ -74,7 +71,7 @@ def test_streamed_outputs_equal_the_whole_run(tmp_path: Path, run) -> None:
     streamed = rows(tmp_path / "metrics.csv")
     summary = writer.finish()
     table = metrics_table(result.times, result.positions, result.headings, sc)
-    assert summary == report.summary(table, "combined (ROS)", 9)
+    assert summary == run_summary.summary(table, "combined (ROS)", 9)
     final = rows(tmp_path / "metrics.csv")
     assert len(final) == len(result.times) and streamed == final[: len(streamed)]
     np.testing.assert_allclose(
@@ -120,7 +117,7 @@ def test_a_run_cut_short_loads_and_rebuilds(tmp_path: Path, run) -> None:
     writer = stream(tmp_path, sc, result, clock, upto=35)
     on_disk = rows(tmp_path / "metrics.csv")
     assert len(on_disk) == writer.written and 20 <= writer.written < 35
-    assert all(len(r) == len(report.CSV_COLUMNS) and None not in r.values() for r in on_disk)
+    assert all(len(r) == len(metrics_csv.CSV_COLUMNS) and None not in r.values() for r in on_disk)
     partial = load_trajectory(tmp_path)  # while its writer still has it open
     assert len(partial.times) == writer.written
     np.testing.assert_array_equal(partial.positions, result.positions[:, : writer.written])

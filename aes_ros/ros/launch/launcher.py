@@ -57,7 +57,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 from aes_ros.previous_run import OVERWRITE, EarlierRunError, remove
-from aes_ros.report import progress
 from aes_ros.ros import dashboard_token
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
@@ -78,6 +77,7 @@ from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.ros.programs import LaunchError
 from aes_ros.ros.spin import stop_signals
+from aes_ros.run_summary import progress
 from aes_ros.run_writer import RunWriter
 
 

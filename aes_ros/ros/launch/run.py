@@ -24,7 +24,7 @@ class LaunchResult:
     """What a run produced.
 
     samples : pose samples taken from ``t_go`` on; t_last : sim time [s] of the last.
-    The samples themselves are in ``out_dir`` (:func:`aes_ros.report.load_trajectory`):
+    The samples themselves are in ``out_dir`` (:func:`aes_ros.trajectory.load_trajectory`):
     a run of hours is not held in memory.
     t_go : sim time [s] of the first sample (the last one before every robot moved).
     stopped_by : None when the run lasted ``duration``, else the signal's name.
