@@ -1,20 +1,23 @@
-"""Write docs/cli.md and docs/interface.md from the code that defines them.
+"""Write docs/cli.md, docs/interface.md and tests/README.md from the code.
 
 docs/cli.md comes from the ``aes-swarm`` parser; docs/interface.md from the tables
 of ``aes_ros/ros/interface.py`` and the parameters each node declares: every node
 is built once in this process, with discovery off (it reaches no other process),
-and its declarations are recorded. Run it after changing any of them::
+and its declarations are recorded. tests/README.md maps each module to the test
+files that import it or start its console script. Run it after changing any of them::
 
-    .venv/bin/python scripts/make_reference.py          # rewrite both files
-    .venv/bin/python scripts/make_reference.py --check  # exit 1 if either is stale
+    .venv/bin/python scripts/make_reference.py          # rewrite the stale files
+    .venv/bin/python scripts/make_reference.py --check  # exit 1 if one is stale
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import os
 import sys
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +34,7 @@ from aes_ros.cli.reference import (  # noqa: E402
 
 CLI_DOC = ROOT / "docs" / "cli.md"
 INTERFACE_DOC = ROOT / "docs" / "interface.md"
+TESTS_DOC = ROOT / "tests" / "README.md"
 #: The node class behind each console script that starts one node.
 NODES = {
     "aes-sim-bridge": "sim_bridge.node:SimBridgeNode",
@@ -95,7 +99,7 @@ def parameters_markdown() -> list[str]:
     os.environ.pop("ROS_DISCOVERY_SERVER", None)
     os.environ.pop("ROS_STATIC_PEERS", None)
     context = Context()
-    rclpy.init(args=[], context=context)
+    rclpy.init(args=["--ros-args", "--log-level", "fatal"], context=context)
     lines = [
         "## Node parameters",
         "",
@@ -149,13 +153,83 @@ def interface_markdown() -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+def project_modules() -> list[str]:
+    """Every module of the packages that pyproject.toml installs, dotted."""
+    find = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    tops = sorted(p.rstrip("*") for p in find["packages"]["find"]["include"])
+    out = []
+    for top in tops:
+        for path in sorted((ROOT / top).rglob("*.py")):
+            parts = path.relative_to(ROOT).with_suffix("").parts
+            out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
+    return out
+
+
+def tested_modules(path: Path, modules: set[str], scripts: dict[str, str]) -> set[str]:
+    """The project modules the test file ``path`` imports, starts (console script,
+    ``-m``) or runs as an ``aes-swarm`` subcommand."""
+    tree = ast.parse(path.read_text())
+    found: set[str] = set()
+    strings: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            found.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names = {f"{node.module}.{a.name}" for a in node.names}
+            found.update(names & modules or {node.module})
+            if node.module == "aes_ros.cli" and "aes_ros.cli.main" in names:
+                strings.add("aes-swarm")
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+            strings.add(node.value)
+    for text in strings:
+        if text in scripts:
+            found.add(scripts[text].split(":")[0])
+        found.add(text)  # "-m", "aes_ros.x" and subcommand names
+    if "aes-swarm" in strings:
+        found.update(f"aes_ros.cli.{name}" for name in strings)
+    return found & modules
+
+
+def tests_markdown() -> str:
+    """The text of tests/README.md."""
+    modules = project_modules()
+    scripts = console_scripts()
+    tests: dict[str, list[str]] = {m: [] for m in modules}
+    for path in sorted((ROOT / "tests").rglob("test_*.py")):
+        for module in tested_modules(path, set(modules), scripts):
+            tests[module].append(f"[{path.name}]({path.relative_to(ROOT / 'tests')})")
+    lines = [
+        "# Tests",
+        "",
+        GENERATED,
+        "",
+        "`tests/unit` runs no ROS process (seconds); `tests/system` starts real nodes over "
+        "Fast DDS, each test in a ROS domain of its own (marker `ros`); `tests/helpers` is "
+        "what both share. Run the tests of one module with "
+        "`.venv/bin/python -m pytest -q tests/unit/test_x.py`. Below: each module and the "
+        "test files that import it, start its console script or run its `aes-swarm` "
+        "subcommand (a module tested only through another is listed without).",
+        "",
+        "| module | tests |",
+        "|---|---|",
+    ]
+    for module in modules:
+        lines.append(f"| `{module}` | {', '.join(tests[module])} |")
+    return "\n".join([*lines, ""])
+
+
 def main(argv: list[str] | None = None) -> int:
     """Write the references, or with ``--check`` name the stale ones (exit 1)."""
-    parser = argparse.ArgumentParser(description="Write docs/cli.md and docs/interface.md.")
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--check", action="store_true", help="only compare; exit 1 if stale")
     args = parser.parse_args(argv)
     stale = []
-    for path, make in ((CLI_DOC, cli_markdown), (INTERFACE_DOC, interface_markdown)):
+    made = (
+        (CLI_DOC, cli_markdown),
+        (INTERFACE_DOC, interface_markdown),
+        (TESTS_DOC, tests_markdown),
+    )
+    for path, make in made:
         text = make()
         if path.exists() and path.read_text() == text:
             continue

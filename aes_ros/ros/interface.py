@@ -27,6 +27,12 @@ def base_link(robot_id: int) -> str:
 CMD_VEL = "cmd_vel"
 ODOM = "odom"
 AES_FORCE = "aes_force"
+#: A real Mona's driver (``aes-mona-driver``) in the robot's namespace: wheel odometry
+#: (nav_msgs/Odometry), IR ranges ``ir/<k>`` (sensor_msgs/Range), battery
+#: (sensor_msgs/BatteryState).
+WHEEL_ODOM = "wheel_odom"
+IR = "ir"
+BATTERY = "battery"
 
 
 def robot_namespace(robot_id: int) -> str:
@@ -92,6 +98,7 @@ RECORDER_NODE = "aes_recorder"
 LAUNCHER_NODE = "aes_launcher"
 STEER_NODE = "aes_steer"
 DASHBOARD_NODE = "dashboard"
+MONA_DRIVER_NODE = "mona_driver"
 
 # --- choices of string parameters and options --------------------------------------------
 
@@ -114,6 +121,8 @@ SUPERVISOR_RECEIVING_POSES = f"receiving {POSES}"
 BRIDGE_READY = "bridge ready:"
 #: A robot host or a robot node, once its robot nodes exist.
 ROBOTS_READY = "robots ready:"
+#: The Mona driver, once its links are open and its topics exist.
+MONA_DRIVER_READY = "mona driver ready:"
 #: The dashboard, once its web server listens (the URL follows).
 DASHBOARD_READY = "dashboard at"
 #: The recorder, once its bag is open.
@@ -194,12 +203,12 @@ TOPICS: tuple[Endpoint, ...] = (
 
 #: Every service of a running swarm.
 SERVICES: tuple[Endpoint, ...] = (
-    Endpoint(ENABLE, "std_srvs/srv/SetBool", "supervisor", "dashboard, you",
+    Endpoint(ENABLE, "std_srvs/srv/SetBool", "supervisor", "aes-swarm steer, dashboard, you",
              "enable (true) or stop (false) the swarm"),
     Endpoint(SIM_RESET, "std_srvs/srv/Trigger", "bridge", "dashboard",
-             "put every robot back at its start pose"),
+             "back to the initial state, every robot stopped; the clock runs on"),
     Endpoint(SIM_PAUSE, "std_srvs/srv/SetBool", "bridge", "dashboard",
              "pause (true) or resume (false) the simulation"),
     Endpoint(SIM_STATS, "std_srvs/srv/Trigger", "bridge", "launcher, benchmarks",
-             "the bridge's step statistics as JSON in message"),
+             "control-loop figures since the previous call, as JSON in message"),
 )  # fmt: skip

@@ -1,7 +1,7 @@
-"""docs/cli.md and docs/interface.md show exactly what the code defines.
+"""docs/cli.md, docs/interface.md and tests/README.md show exactly what the code defines.
 
-Both are generated (``scripts/make_reference.py``); a flag, topic, service or node
-parameter added, removed or renamed without regenerating fails here, naming it.
+All three are generated (``scripts/make_reference.py``); a flag, topic, service, node
+parameter or test import added, removed or renamed without regenerating fails here.
 """
 
 from __future__ import annotations
@@ -47,8 +47,9 @@ def test_cli_md_tables_name_each_visible_flag_of_each_command() -> None:
         assert not hidden & set(re.findall(r"`(-[-\w]+)", table)), name
 
 
-def test_interface_md_shows_every_topic_service_and_node_parameter() -> None:
-    """Builds every node with discovery off (no other process sees it) and compares."""
+def test_interface_md_and_tests_readme_are_current() -> None:
+    """Builds every node with discovery off (no other process sees it), reads the test
+    files' imports, and compares with docs/interface.md and tests/README.md."""
     done = subprocess.run(
         [sys.executable, str(ROOT / "scripts" / "make_reference.py"), "--check"],
         capture_output=True, text=True, timeout=120, cwd=ROOT,
