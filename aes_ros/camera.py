@@ -1,4 +1,6 @@
-"""Pinhole camera geometry shared by the simulated overhead camera and the tracker (SPEC §8).
+"""Pinhole camera geometry shared by the simulated overhead camera and the tracker.
+
+See docs/design.md#tracking.
 
 One model, OpenCV's: a world point ``X`` [m; arena frame] is seen at
 ``x_c = R X + t`` in the camera frame (x right, y down in the image, z along

@@ -1,4 +1,4 @@
-"""Nominal formations and the elastic sheet they define (SPEC §1.2, §4).
+"""Nominal formations and the elastic sheet they define (docs/design.md#sheet, #scenarios).
 
 A formation is an ``(N, 2)`` array of nominal positions [m; odom]. The sheet,
 i.e. each robot's neighbour set S_i and rest lengths l_ij, comes from the
@@ -86,7 +86,7 @@ def _is_number(text: str) -> bool:
 
 
 def neighbor_table(nominal: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
-    """Neighbour sets S_i and rest lengths l_ij from nominal positions (SPEC §1.2).
+    """Neighbour sets S_i and rest lengths l_ij from nominal positions (docs/design.md#sheet).
 
     Parameters
     ----------
@@ -155,7 +155,7 @@ def spring_pairs(neighbors: np.ndarray) -> np.ndarray:
 def perturbed_start(
     nominal: np.ndarray, spacing: float, perturbation: float, rng: np.random.Generator
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Initial state of one run (SPEC §4).
+    """Initial state of one run (docs/design.md#scenarios).
 
     Positions are the nominal ones plus a uniform offset in
     ``[-perturbation*spacing, perturbation*spacing]`` per axis; headings are

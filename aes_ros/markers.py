@@ -1,4 +1,6 @@
-"""The fiducial markers the overhead camera sees (SPEC §8): which, where, and how worn.
+"""The fiducial markers the overhead camera sees: which, where, and how worn.
+
+See docs/design.md#tracking.
 
 Shared by the simulated camera (:mod:`sim_bridge.camera_render`), which draws
 them, and the tracker (:mod:`tracker_node`), which finds them; kept here, in the
@@ -23,7 +25,7 @@ Convention
   down (249, 248, …: :func:`reference_ids`), so robots and references never
   collide while fewer than ``250 - #references`` robots run.
 - A robot's marker (:class:`RobotMarker`) lies on the Mona's top, 38 mm above
-  the floor (35 mm body + 3 mm clearance, SPEC §5), centred on the body's axis,
+  the floor (35 mm body + 3 mm clearance, docs/design.md#mona), centred on the body's axis,
   which is ``offset`` = 18 mm ahead of ``base_link`` (the axle midpoint that
   ``/swarm/poses`` reports). Its black square is 50 mm, printed on a round
   white sticker that covers the Ø 80 mm top. The white around the square is
@@ -71,7 +73,7 @@ def dictionary(dictionary_id: int = DICTIONARY) -> cv2.aruco.Dictionary:
 
 @dataclass(frozen=True)
 class RobotMarker:
-    """How a Mona wears its marker (the defaults are the Mona's, SPEC §5).
+    """How a Mona wears its marker (the defaults are the Mona's, docs/design.md#mona).
 
     size : side of the black square [m].
     sticker_diameter : the round white sticker the marker is printed on [m]

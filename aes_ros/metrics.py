@@ -1,8 +1,8 @@
-"""Swarm metrics (SPEC §2, E7–E9), reduced over the trailing robot axis.
+"""Swarm metrics (docs/design.md#metrics, E7–E9), reduced over the trailing robot axis.
 
 All take the noise-free force f_i of E4. Shapes: ``forces (..., N, 2)``,
 ``headings (..., N)`` [rad], ``positions (..., N, 2)`` [m]; results have shape
-``(...)``. Beyond SPEC §2, :func:`spring_strain` measures how far the sheet
+``(...)``. Beyond docs/design.md#metrics, :func:`spring_strain` measures how far the sheet
 has come apart (the tuning study's cohesion column).
 """
 

@@ -1,4 +1,4 @@
-"""The Active Elastic Sheet model with the Raoufi extensions (SPEC §1, E1–E6).
+"""The Active Elastic Sheet model with the Raoufi extensions (docs/design.md#model, E1–E6).
 
 Pure functions on arrays with leading batch axes: ``positions (..., N, 2)``
 [m; odom], ``headings (..., N)`` [rad, counter-clockwise from +x]. The same
@@ -22,7 +22,7 @@ from aes_ros.params import PARAMS
 
 @dataclass(frozen=True)
 class Gains:
-    """Gains and noise strengths (SPEC §4 defaults: the paper's Table 1)."""
+    """Gains and noise strengths (docs/design.md#scenarios defaults: the paper's Table 1)."""
 
     alpha: float = PARAMS["alpha"].default
     beta: float = PARAMS["beta"].default
@@ -57,7 +57,7 @@ def noise_dt(dt: float | np.ndarray) -> float | np.ndarray:
 
 @dataclass(frozen=True)
 class SwarmCommand:
-    """What the supervisor tells every robot (SPEC §1.3, §7).
+    """What the supervisor tells every robot (docs/design.md#extensions, #ros-interface).
 
     direction : v_d, world frame; its length scales the drive, (0, 0) switches it off.
     omega : rotation rate ω [rad/s], counter-clockwise positive.
@@ -157,7 +157,7 @@ Noise = tuple[np.ndarray, np.ndarray, np.ndarray]
 def draw_noise(
     rng: np.random.Generator, shape: tuple[int, ...] = (), out: Noise | None = None
 ) -> Noise:
-    """Noise for ``shape`` robot-steps (SPEC §1.4).
+    """Noise for ``shape`` robot-steps (docs/design.md#motion).
 
     The angle of ξ̂_r is uniform in [-π, π) and ξ_θ ~ N(0, 1), independent.
     Draws all angles, then all normals, from ``rng``. The unit vector's
@@ -234,7 +234,7 @@ def motion_commands(
 def clip_commands(
     u: np.ndarray, turn_rate: np.ndarray, max_linear_speed: float, max_angular_speed: float
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Clip commands to the robot's limits (SPEC §5), each axis independently.
+    """Clip commands to the robot's limits (docs/design.md#mona), each axis independently.
 
     (``np.minimum(np.maximum(...))`` is ``np.clip`` without its dispatch overhead,
     a third of the cost for the robot nodes' scalars.)

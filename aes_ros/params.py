@@ -1,4 +1,4 @@
-"""One definition of every model and scenario parameter (SPEC §1, §4, §5).
+"""One definition of every model and scenario parameter (docs/design.md#model, #scenarios, #mona).
 
 Each :class:`ParamSpec` carries the name, default, allowed range, unit and a
 description. The scenario loader, the ``--set`` option of the CLI, the ROS
@@ -149,7 +149,7 @@ def _p(
 
 
 #: The Mona's top forward speed [m/s] (9 rad/s × 15 mm) and body radius [m] (Ø 80 mm),
-#: SPEC §5.
+#: docs/design.md#mona
 MONA_TOP_SPEED, MONA_RADIUS = 0.13, 0.04
 #: The arena keeper's reaction time [s]: from a robot entering the margin to the sheet
 #: no longer moving outward (derivation in :mod:`aes_ros.arena`). The default margin is
@@ -157,12 +157,12 @@ MONA_TOP_SPEED, MONA_RADIUS = 0.13, 0.04
 ARENA_REACTION_TIME = 1.0
 
 #: Every scenario parameter, in the order the docs list them. Defaults are the
-#: paper's Table 1 (SPEC §4), with the rotation rate in our counter-clockwise
+#: paper's Table 1 (docs/design.md#scenarios), with the rotation rate in our counter-clockwise
 #: convention (the paper's ω = 0.7 clockwise is ω = -0.7 here).
 PARAMS: dict[str, ParamSpec] = {
     p.name: p
     for p in [
-        # --- formation (SPEC §1.2, §4) ---
+        # --- formation (docs/design.md#sheet, #scenarios) ---
         _p(
             "formation",
             "grid",
@@ -200,7 +200,7 @@ PARAMS: dict[str, ParamSpec] = {
             low=0.0,
             high=0.5,
         ),
-        # --- gains and noise (SPEC §1.3, §1.4) ---
+        # --- gains and noise (docs/design.md#extensions, #motion) ---
         _p("alpha", 0.066, "float", "translational gain α (E5)", "m/(s·N)", low=0.0, high=10.0),
         _p("beta", 0.97, "float", "rotational gain β (E6)", "rad/(s·N)", low=0.0, high=50.0),
         _p("k", 1.28, "float", "spring stiffness k (E1)", "N", low=0.0, high=100.0),
@@ -217,7 +217,7 @@ PARAMS: dict[str, ParamSpec] = {
             low=0.0,
             high=10.0,
         ),
-        # --- swarm command (SPEC §1.3) ---
+        # --- swarm command (docs/design.md#extensions) ---
         _p(
             "direction",
             (-1.0, 0.0),
@@ -244,7 +244,7 @@ PARAMS: dict[str, ParamSpec] = {
             low=-1e4,
             high=1e4,
         ),
-        # --- integration and robot limits (SPEC §1.4, §5) ---
+        # --- integration and robot limits (docs/design.md#motion, #mona) ---
         _p("dt", 0.05, "float", "Euler time step Δt (20 Hz control)", "s", low=1e-4, high=1.0),
         _p("duration", 30.0, "float", "run length t_f", "s", low=0.0, high=1e5),
         _p("clip", False, "bool", "clip commands to the robot's limits"),

@@ -1,4 +1,4 @@
-"""Scenarios: the paper's three setups as editable YAML files (SPEC §4).
+"""Scenarios: the paper's three setups as editable YAML files (docs/design.md#scenarios).
 
 A scenario is a flat mapping of the parameters in :data:`aes_ros.params.PARAMS`.
 The packaged files ``aes_ros/scenarios/{linear,rotation,combined}.yaml`` hold

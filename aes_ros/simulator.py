@@ -1,4 +1,4 @@
-"""Batched offline simulator of the AES model (SPEC §1.4): B independent runs at once.
+"""Batched offline simulator of the AES model (docs/design.md#motion): B independent runs at once.
 
 Each run b has its own ``numpy.random.Generator`` (seeded with ``seeds[b]``):
 it draws the initial state first (:func:`aes_ros.formations.perturbed_start`),

@@ -3,7 +3,7 @@
 Issue #13 asks 1000 robots at 20 Hz with ≥ 95 % of the steps answered. On two cores
 that leaves at most ``2e6 / (0.95 · N · rate)`` µs of CPU per robot-step for the whole
 system (105 µs at 1000 robots, 20 Hz). This script measures, each part alone and in
-this run, the work no design with one ``cmd_vel`` topic per robot (SPEC §7) can
+this run, the work no design with one ``cmd_vel`` topic per robot (docs/design.md#ros-interface) can
 avoid, with nothing else of the system running:
 
 1. ``control``: a robot host's work per step without ROS: decode one ``/swarm/poses``

@@ -1,4 +1,4 @@
-"""TCACS against the reference behaviour of its authors' implementation (SPEC §6).
+"""TCACS against the reference behaviour of its authors' implementation (docs/design.md#tcacs).
 
 Runs every function of :data:`aes_ros.optim.benchmarks.BENCHMARKS` ``--runs`` times (100
 by default) with the dimension's default options (n < 4: 10 ants, rank, γ = 1,

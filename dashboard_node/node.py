@@ -1,5 +1,5 @@
 """The dashboard's ROS node ``/dashboard``: it listens to the swarm, and steers it through
-the same public interface as the CLI and ``ros2`` (SPEC §7).
+the same public interface as the CLI and ``ros2`` (docs/design.md#ros-interface).
 
 It reads ``/swarm/poses``, the supervisor's command and metrics, ``/clock`` and the
 bridge's ``/diagnostics`` (which robots are silent) into a

@@ -1,6 +1,6 @@
 """The dashboard's control requests, carried out in its node's thread through the swarm's
-public interface (SPEC §7): ``/swarm/enable``, ``/sim/pause``, ``/sim/reset``, the robots'
-and the supervisor's ``set_parameters`` (gains) and the supervisor's
+public interface (docs/design.md#ros-interface): ``/swarm/enable``, ``/sim/pause``,
+``/sim/reset``, the robots' and the supervisor's ``set_parameters`` (gains) and the supervisor's
 ``set_parameters_atomically`` (the swarm command).
 
 The web server hands a request over with :meth:`ControlRequests.submit` and waits

@@ -29,7 +29,7 @@ MAX_ROBOT_ID = 1_000_000
 
 @dataclass(frozen=True)
 class RobotSettings:
-    """A robot's parameters (SPEC §7), as the controller uses them.
+    """A robot's parameters (docs/design.md#ros-interface), as the controller uses them.
 
     rest_lengths : one per neighbour [m], or empty: latch them at first sight.
     limits : (max_linear_speed [m/s], max_angular_speed [rad/s]) or None: no clipping.

@@ -1,4 +1,6 @@
-"""AES robot host: K robot nodes in one process on one EventsExecutor (SPEC §7).
+"""AES robot host: K robot nodes in one process on one EventsExecutor.
+
+See docs/design.md#processes.
 
 Each robot is its own rclpy node (``/mona_<i>/aes_robot``: own parameters,
 ``cmd_vel`` and ``aes_force``), but the process reads each ``/swarm/*`` input once

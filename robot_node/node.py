@@ -1,4 +1,4 @@
-"""AES robot node: the controller of one Mona robot (SPEC §1.4, §7).
+"""AES robot node: the controller of one Mona robot (docs/design.md#motion, #ros-interface).
 
 For every new pose of its robot the node evaluates the control law
 (:func:`aes_ros.model.evaluate_robots`, i.e. :func:`aes_ros.model.robot_command`,

@@ -1,5 +1,5 @@
 """The simulated overhead camera ``/arena_camera``: what a lab's ceiling camera sees of
-the swarm, rendered from the bridge's exact poses (SPEC §8).
+the swarm, rendered from the bridge's exact poses (docs/design.md#tracking).
 
 Start it (the launch does, with ``--tracking camera``)::
 

@@ -1,4 +1,4 @@
-"""The simulated overhead camera: mono8 images of the robots' markers (SPEC §8).
+"""The simulated overhead camera: mono8 images of the robots' markers (docs/design.md#tracking).
 
 What a real camera above the arena would see, drawn through the camera model
 of :mod:`aes_ros.camera` (so the tracker is tested against the geometry it

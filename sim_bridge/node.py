@@ -1,4 +1,4 @@
-"""The ``sim_bridge`` node: a pybullet world of Mona robots on ROS 2 (SPEC §7).
+"""The ``sim_bridge`` node: a pybullet world of Mona robots on ROS 2 (docs/design.md#ros-interface).
 
 Start it (headless, the combined scenario's 10 x 10 formation)::
 

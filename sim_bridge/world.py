@@ -1,4 +1,4 @@
-"""A pybullet world of N Mona robots, free of ROS (SPEC §5, §7).
+"""A pybullet world of N Mona robots, free of ROS (docs/design.md#mona, #ros-interface).
 
 Two modes:
 
@@ -56,7 +56,7 @@ class World:
     limits : (max_linear_speed [m/s], max_angular_speed [rad/s]) to clip
         commands to, or None for no clipping (dynamic mode still saturates the
         wheels at ``geometry.max_wheel_speed``).
-    geometry : the robot (SPEC §5 defaults).
+    geometry : the robot (docs/design.md#mona defaults).
     gui : open the pybullet GUI instead of a headless (DIRECT) server.
     solver_iterations : pybullet constraint-solver iterations per physics step
         (pybullet's default is 50; 10 is ~3x faster and ample for these

@@ -1,4 +1,6 @@
-"""AES supervisor node: what every robot is told, and how the swarm is doing (SPEC §7).
+"""AES supervisor node: what every robot is told, and how the swarm is doing.
+
+See docs/design.md#ros-interface.
 
 Publishes the swarm command ``/swarm/desired_velocity`` (v_d, ω), the rotation
 centre ``/swarm/rotation_center`` (the live centroid of ``/swarm/poses`` or a

@@ -1,1 +1,1 @@
-"""aes-tracker: robot poses from an overhead camera's ArUco markers (SPEC §8)."""
+"""aes-tracker: robot poses from an overhead camera's ArUco markers (docs/design.md#tracking)."""

@@ -1,4 +1,4 @@
-"""Finding the markers in a camera image: ids and sub-pixel corners (SPEC §8).
+"""Finding the markers in a camera image: ids and sub-pixel corners (docs/design.md#tracking).
 
 :func:`detect_markers` runs OpenCV's ArUco detector (dictionary and corner
 order of :mod:`aes_ros.markers`) with parameters for small markers, refines

@@ -1,4 +1,6 @@
-"""The tracker node ``/tracker``: robot poses from an overhead camera's markers (SPEC §8).
+"""The tracker node ``/tracker``: robot poses from an overhead camera's markers.
+
+See docs/design.md#tracking.
 
 Start it (the launch does, with ``--tracking camera``)::
 

@@ -1,4 +1,4 @@
-"""Robot poses from their markers' corners (SPEC §8).
+"""Robot poses from their markers' corners (docs/design.md#tracking).
 
 :func:`marker_poses` maps each marker's 4 image corners onto the marker plane
 (the calibration's ``marker_height``, so the parallax of the raised marker is

@@ -1,4 +1,6 @@
-"""Standard test functions of global minimisation, with the reference behaviour of TCACS (SPEC §6).
+"""Test functions of global minimisation, with TCACS's reference behaviour.
+
+See docs/design.md#tcacs-reference.
 
 Every function is vectorised like a TCACS objective: ``X`` of shape ``(k, n)``
 gives the ``(k,)`` values. :data:`BENCHMARKS` pairs each with its box, its
@@ -90,7 +92,7 @@ def shekel5(X: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Benchmark:
-    """A test function with its box, optimum and the reference behaviour (SPEC §6)."""
+    """A test function with its box, optimum and the reference behaviour (docs/design.md#tcacs)."""
 
     name: str
     f: Callable[[np.ndarray], np.ndarray]

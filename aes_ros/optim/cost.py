@@ -1,4 +1,6 @@
-"""The tuning cost J(α, β, k) (SPEC §3.1, E10), Monte-Carlo averaged with common random numbers.
+"""The tuning cost J(α, β, k) (E10), Monte-Carlo averaged with common random numbers.
+
+See docs/design.md#cost.
 
     J = (1/N_MC) Σ_{m=1}^{N_MC} Σ_{t=0}^{t_f} [ w_1 F^t + w_2 ψ^t ]
 
@@ -29,7 +31,7 @@ from aes_ros.model import Gains
 from aes_ros.scenario import Scenario
 from aes_ros.simulator import SimResult, simulate
 
-#: The decision variables of the paper's tuning (SPEC §3.2), in this order.
+#: The decision variables of the paper's tuning (docs/design.md#tcacs-options), in this order.
 TUNED_GAINS = ("alpha", "beta", "k")
 
 
@@ -49,7 +51,7 @@ def run_costs(result: SimResult, w1: float, w2: float) -> np.ndarray:
 
 
 def default_weights(n_robots: int) -> tuple[float, float]:
-    """(w_1, w_2) = (1/N, −1), the paper's default weights (SPEC §3.1)."""
+    """(w_1, w_2) = (1/N, −1), the paper's default weights (docs/design.md#cost)."""
     return 1.0 / n_robots, -1.0
 
 

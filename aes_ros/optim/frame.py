@@ -1,11 +1,12 @@
-"""The sampling frame of TCACS (SPEC §6 steps 5–6): the rotation fitted to the
+"""The sampling frame of TCACS (docs/design.md#tcacs-step-5, #tcacs-step-6): the rotation
+fitted to the
 promising points, and the weights of their spread along its axes."""
 
 from __future__ import annotations
 
 import numpy as np
 
-#: How the promising points weigh in the spread σ (SPEC §6 step 6).
+#: How the promising points weigh in the spread σ (docs/design.md#tcacs-step-6).
 WEIGHTINGS = ("roulette", "rank")
 
 
@@ -15,7 +16,7 @@ def spread_weights(
     weighting: str,
     gamma: float,
 ) -> np.ndarray:
-    """Weights W_k of the P−1 promising points other than x* (SPEC §6 step 6).
+    """Weights W_k of the P−1 promising points other than x* (docs/design.md#tcacs-step-6).
 
     Parameters
     ----------
@@ -62,7 +63,7 @@ def _proportional(values: np.ndarray) -> np.ndarray:
 
 
 def fit_frame(points: np.ndarray, m: float, rng: np.random.Generator) -> np.ndarray:
-    """The rotation R (axes as rows) fitted to the promising points (SPEC §6 step 5).
+    """The rotation R (axes as rows) fitted to the promising points (docs/design.md#tcacs-step-5).
 
     Centre the points on their mean; for j = 1 … n−1 pick a centred point with
     probability ∝ ‖c‖^(2m), take its direction as axis u_j and deflate every

@@ -1,4 +1,6 @@
-"""The paper's tuning study in one call (``aes-swarm study``; SPEC §3, Raoufi et al. 2019).
+"""The paper's tuning study in one call (``aes-swarm study``; Raoufi et al. 2019).
+
+See docs/design.md#tuning.
 
 :func:`run_study` compares untuned gains, the paper's tuned gains and
 TCACS-tuned gains (:func:`aes_ros.optim.tuning.tune`) for the paper's weights
@@ -38,7 +40,7 @@ from aes_ros.scenario import Scenario
 
 #: "Default" (untuned) gains of the study: every gain 1 (see :func:`run_study`).
 UNTUNED_GAINS = {"alpha": 1.0, "beta": 1.0, "k": 1.0}
-#: The paper's weight settings (w_1 in units of 1/N, w_2), SPEC §3.1.
+#: The paper's weight settings (w_1 in units of 1/N, w_2), docs/design.md#cost
 WEIGHTS = {"paper": (1.0, -1.0), "force×10": (10.0, -1.0), "alignment×10": (1.0, -10.0)}
 
 #: Seeds of the held-out evaluation runs (disjoint from any tuning run's seeds).

@@ -1,4 +1,6 @@
-"""TCACS, the tabu continuous ant colony system (SPEC §6; Karimi, Nobahari & Siarry 2010).
+"""TCACS, the tabu continuous ant colony system (Karimi, Nobahari & Siarry 2010).
+
+See docs/design.md#tcacs.
 
 A box-constrained global minimiser for n >= 2 variables. It keeps the best
 point found so far and samples each iteration's ants from a Gaussian centred
@@ -28,14 +30,14 @@ from scipy.optimize import OptimizeResult
 
 from aes_ros.optim.frame import WEIGHTINGS, fit_frame, spread_weights
 
-#: The paper's options (SPEC §3.2), the defaults of :func:`minimize`, of the
+#: The paper's options (docs/design.md#tcacs-options), the defaults of :func:`minimize`, of the
 #: tuning and of ``aes-swarm optimize``; also the reference's defaults for n >= 4.
 PAPER_OPTIONS: Mapping[str, Any] = MappingProxyType(
     {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
 )
-#: The paper's budget of cost evaluations (SPEC §3.2).
+#: The paper's budget of cost evaluations (docs/design.md#tcacs-options).
 DEFAULT_MAX_EVALS = 300
-#: Default spatial convergence radius of the stop rule (SPEC §6 step 7).
+#: Default spatial convergence radius of the stop rule (docs/design.md#tcacs-step-7).
 DEFAULT_TOL = 1e-4
 
 #: Seeding: retries per seed point before the last draw is accepted anyway (the
@@ -62,7 +64,7 @@ def minimize(
     seed: int | np.random.Generator | None = None,
     callback: Callable[[OptimizeResult], bool | None] | None = None,
 ) -> OptimizeResult:
-    """Minimise ``f`` over a box with TCACS (SPEC §6).
+    """Minimise ``f`` over a box with TCACS (docs/design.md#tcacs).
 
     Parameters
     ----------
@@ -75,7 +77,7 @@ def minimize(
     n_ants : int
         Ants per iteration; also the sizes P and T of the promising and tabu lists.
     weighting : {"roulette", "rank"}
-        How the promising points weigh in the spread σ (SPEC §6 step 6).
+        How the promising points weigh in the spread σ (docs/design.md#tcacs-step-6).
     gamma : float in [0, 1]
         Share of the cost term in the weights (the rest is the distance term).
     m : float >= 0
@@ -114,7 +116,7 @@ def minimize(
 
     Notes
     -----
-    The algorithm follows SPEC §6 step by step (the authors' reference
+    The algorithm follows docs/design.md#tcacs step by step (the authors' reference
     implementation): two seeding iterations of uniform points kept at least
     s₀ = (0.7·Π(b−a)/n_ants)^(1/n) apart (including from the buffer's
     not-yet-overwritten slots, i.e. from the origin in iteration 1); then
@@ -231,7 +233,7 @@ def n_iterations(max_evals: int, n_ants: int) -> int:
 
 
 def default_options(n: int) -> dict[str, Any]:
-    """The reference's default options for dimension n (SPEC §6 validation table).
+    """The reference's default options for dimension n (docs/design.md#tcacs-reference).
 
     n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: :data:`PAPER_OPTIONS`
     (15 ants, roulette, γ = 0.5, m = 2).
@@ -244,7 +246,7 @@ def default_options(n: int) -> dict[str, Any]:
 class TCACSSolver:
     """The TCACS state machine behind :func:`minimize` (same parameters).
 
-    State (SPEC §6): ``x_best``/``f_best``; ``sigma`` (one value per rotated
+    State (docs/design.md#tcacs): ``x_best``/``f_best``; ``sigma`` (one value per rotated
     axis) and ``R`` (axes as rows); the promising and tabu lists
     (``promising_x``/``promising_f``, ``tabu_x``/``tabu_f``); ``r_tabu``.
     :meth:`solve` runs the whole optimisation; :meth:`sample` and
@@ -294,7 +296,7 @@ class TCACSSolver:
 
     # --- steps -------------------------------------------------------------
     def seed_points(self) -> np.ndarray:
-        """One seeding iteration (SPEC §6 step 2): n_ants uniform points, s₀ apart.
+        """One seeding iteration (docs/design.md#tcacs-step-2): n_ants uniform points, s₀ apart.
 
         A draw closer than s₀ to any slot of the buffer (earlier points of this
         iteration, and the slots not yet overwritten: the origin in iteration 1,
@@ -311,7 +313,7 @@ class TCACSSolver:
         return buf.copy()
 
     def sample(self) -> np.ndarray:
-        """Draw one iteration's ants around x_best (SPEC §6 step 3). Returns (n_ants, n).
+        """Draw one iteration's ants around x_best (docs/design.md#tcacs-step-3): (n_ants, n).
 
         x = x_best + Rᵀ(σ ⊙ z), z ~ N(0, I), redrawn until inside the box; a
         candidate within r_tabu of a tabu point is rejected unless more than
@@ -362,7 +364,7 @@ class TCACSSolver:
         return y
 
     def update_lists(self, X: np.ndarray, y: np.ndarray, sigma_used: np.ndarray) -> None:
-        """Promising and tabu lists and r_tabu from this iteration's ants (SPEC §6 step 4).
+        """Promising and tabu lists and r_tabu from the ants (docs/design.md#tcacs-step-4).
 
         ``sigma_used`` is σ as used for this iteration's sampling; x_best must
         already include this iteration's update.
@@ -383,7 +385,7 @@ class TCACSSolver:
             self.r_tabu = math.inf
 
     def update_frame(self) -> None:
-        """Rotation R and spread σ from the promising list (SPEC §6 steps 5, 6)."""
+        """Rotation R and spread σ from the promising list (docs/design.md#tcacs-step-5, 6)."""
         self.R = fit_frame(self.promising_x, self.m, self.rng)
         z = self.promising_x @ self.R.T
         x_star = self.promising_x[0]
@@ -392,7 +394,7 @@ class TCACSSolver:
         self.sigma = np.sqrt(W @ (z[1:] - z[0]) ** 2)
 
     def converged(self) -> bool:
-        """Spatial stop rule (SPEC §6 step 7): every promising point within tol of x_best."""
+        """Stop rule (docs/design.md#tcacs-step-7): every promising point within tol of x_best."""
         if len(self.promising_x) == 0:
             return False
         return bool(np.all(np.linalg.norm(self.promising_x - self.x_best, axis=1) <= self.tol))

@@ -1,4 +1,4 @@
-"""One tuning run: TCACS on the Monte-Carlo cost J (SPEC §3; Raoufi et al. 2019).
+"""One tuning run: TCACS on the Monte-Carlo cost J (docs/design.md#tuning; Raoufi et al. 2019).
 
 :func:`tune` runs TCACS (:mod:`aes_ros.optim.tcacs`) on J (E10,
 :mod:`aes_ros.optim.cost`) and :func:`write_tune_outputs` writes what
@@ -44,7 +44,8 @@ Bounds = dict[str, tuple[float, float]]
 DEFAULT_BOUNDS: Bounds = {"alpha": (0.001, 0.5), "beta": (0.01, 5.0), "k": (0.5, 5.0)}
 #: The same box with k free down to 0, to show where J leads without the k bound.
 WIDE_BOUNDS: Bounds = {"alpha": (0.0, 0.5), "beta": (0.0, 5.0), "k": (0.0, 5.0)}
-#: The paper's TCACS result (SPEC §3.2, Table 1); every result.json quotes it, the study compares.
+#: The paper's TCACS result (docs/design.md#tcacs-options, Table 1); every result.json quotes
+#: it, the study compares.
 PAPER_GAINS = {"alpha": 0.066, "beta": 0.97, "k": 1.28}
 
 

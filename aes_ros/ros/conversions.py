@@ -140,7 +140,7 @@ def point_to_array(point: Point) -> np.ndarray:
 def twist_to_drive(twist: Twist) -> tuple[tuple[float, float], float]:
     """Desired direction v_d = (linear.x, linear.y) and ω = angular.z of a Twist.
 
-    Used for ``/swarm/desired_velocity`` and ``/swarm/cmd`` (SPEC §7); raises
+    Used for ``/swarm/desired_velocity`` and ``/swarm/cmd`` (docs/design.md#ros-interface); raises
     BadMessageError if one of the three values is not finite.
     """
     values = (twist.linear.x, twist.linear.y, twist.angular.z)

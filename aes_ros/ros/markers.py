@@ -26,7 +26,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from aes_ros.ros import interface as names
 
-#: The Mona's body: diameter and height [m] (SPEC §5).
+#: The Mona's body: diameter and height [m] (docs/design.md#mona).
 BODY_DIAMETER, BODY_HEIGHT = 0.08, 0.035
 #: Strain drawn fully red [-]; length of a heading line [m].
 STRAIN_RED, HEADING_LENGTH = 0.3, 0.06

@@ -27,7 +27,7 @@ from rclpy.parameter import Parameter
 from aes_ros import scenario as scenario_mod
 from aes_ros.params import PARAMS, ParameterError, ParamSpec
 
-#: Robot limits (SPEC §5).
+#: Robot limits (docs/design.md#mona).
 LIMIT_NAMES = ("max_linear_speed", "max_angular_speed")
 
 _INT64_MAX = 2**63 - 1

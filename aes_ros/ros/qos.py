@@ -1,4 +1,4 @@
-"""QoS profiles of the AES interface (SPEC §7).
+"""QoS profiles of the AES interface (docs/design.md#ros-interface).
 
 Pose and odometry streams are sensor data (best-effort, keep-last 1); commands
 are reliable; supervisor topics are reliable and transient-local so that a late

@@ -2,7 +2,7 @@
 
 Recorded: every ``/swarm/*`` topic, ``/clock`` and every ``/mona_<i>/cmd_vel``,
 as the CDR bytes that came over the wire (raw subscriptions: nothing is decoded
-or re-encoded). The known topics are subscribed at once with the QoS of SPEC §7
+or re-encoded). The known topics are subscribed at once with the QoS of docs/design.md#ros-interface
 (transient-local for the supervisor's latched topics, so their last value is in
 the bag); further matching topics are picked up by discovery once a second. Log
 times are wall time [ns], like ``ros2 bag record`` without ``--use-sim-time``;
@@ -77,7 +77,8 @@ from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import spin
 
-#: Topics recorded from the start: name -> (type, QoS of its publisher, SPEC §7).
+#: Topics recorded from the start: name -> (type, QoS of its publisher;
+#: docs/design.md#ros-interface).
 KNOWN_TOPICS: dict[str, tuple[str, QoSProfile]] = {
     names.CLOCK: ("rosgraph_msgs/msg/Clock", STREAM_WRITER),
     names.POSES: ("geometry_msgs/msg/PoseArray", STREAM_WRITER),

@@ -2,7 +2,7 @@
 
 Shared by every node process (robot node, robot host, supervisor, bridge). The
 EventsExecutor is 2–3x cheaper per callback than the SingleThreadedExecutor
-(SPEC §7). Its ``spin()`` of this rclpy (7.1) busy-loops once the context is
+(docs/design.md#ros-interface). Its ``spin()`` of this rclpy (7.1) busy-loops once the context is
 shut down, and rclpy's own signal handler shuts the context down under a
 running callback, which then fails ("Unable to convert call argument", a
 publish on a dead context) and turns a clean Ctrl-C into exit code 1. So

@@ -2,7 +2,7 @@
 
 Order is the heading order ψ_heading (E7), time-averaged after a transient, of a
 sheet driven west (linear setup, the paper's gains). Two noises act on a robot:
-D_r on the force it senses, D_θ on its turning (SPEC §1).
+D_r on the force it senses, D_θ on its turning (docs/design.md#model).
 
 1. ψ̄_heading over (D_r, D_θ) on a log grid, 100 robots in a square sheet;
 2. ψ̄_heading along each noise alone (the other at its default), for N ≈ 25, 100,

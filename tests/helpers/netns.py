@@ -1,6 +1,6 @@
 """Several "hosts" on one machine: Linux network namespaces on a private LAN.
 
-Used by tests/system/test_multihost.py (SPEC §7 "Processes and performance design",
+Used by tests/system/test_multihost.py (docs/design.md#processes,
 multi-host and packet loss). :class:`Lan` builds
 
     namespace <prefix>b   (bridge + supervisor + observer)  br0 10.77.0.1/24

@@ -1,4 +1,4 @@
-"""The ROS system across several hosts, with and without packet loss (SPEC §7).
+"""The ROS system across several hosts, with and without packet loss (docs/design.md#ros-interface).
 
 "Hosts" are Linux network namespaces on one private LAN (tests/helpers/netns.py):
 aes-sim-bridge, aes-supervisor and an observer in one namespace, one

@@ -1,4 +1,6 @@
-"""End-to-end tests of the ROS 2 system (SPEC §7): real processes over Fast DDS.
+"""End-to-end tests of the ROS 2 system: real processes over Fast DDS.
+
+See docs/design.md#ros-interface.
 
 Every test gets its own ROS_DOMAIN_ID (``ros_env``/``spawn`` fixtures) and
 starts the system as a user would: ``aes-swarm launch`` (which starts

@@ -59,7 +59,7 @@ def test_combined_moves_west_and_turns_clockwise_with_the_papers_omega() -> None
 
 
 def test_results_do_not_depend_on_the_time_step() -> None:
-    """Δt in [0.01, 0.1] s gives the same motion within Monte-Carlo noise (SPEC §4)."""
+    """Δt in [0.01, 0.1] s gives the same motion within noise (docs/design.md#scenarios)."""
     stats = {}
     for dt in (0.01, 0.05, 0.1):
         result = simulator.simulate(scenario.load("linear", {"dt": dt}), list(range(6)))

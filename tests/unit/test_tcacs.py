@@ -1,4 +1,4 @@
-"""TCACS (SPEC §6): contracts, the steps of the algorithm, and the reference behaviour.
+"""TCACS (docs/design.md#tcacs): contracts, the steps of the algorithm, and the reference behaviour.
 
 The validation test runs each reference function 25 times (the full 100-run
 table is ``bench/bench_tcacs.py``). Tolerances: the success rate may fall at
