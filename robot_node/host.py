@@ -41,14 +41,12 @@ from robot_node.node import RobotNode
 from robot_node.swarm_inputs import SwarmInputs
 
 #: Robots per DDS participant when the host is a client of a discovery server
-#: (``robots_per_participant`` 0). Fast DDS 2.14 pairs each endpoint it learns of with
-#: *every* endpoint of its participant, whatever the topic, and rmw sends a participant's
-#: whole graph at each endpoint it makes; through a server, which passes on only the
-#: endpoints of the topics a participant uses, smaller participants cut both.
-#: ``bench/bench_startup.py`` (1000 nodes with their services in one process, beside a
-#: reader of their 1000 ``cmd_vel`` as the bridge is): every reader matched after 17.9 s
-#: in one participant, 6.1 s in 4, 6.3 s in 10, through a server; under simple discovery
-#: 10.1, 86.6 and 107 s, so there the host keeps one.
+#: (``robots_per_participant`` 0). Fast DDS pairs each endpoint it learns of with every
+#: endpoint of its own participant, and rmw sends a participant's whole graph at each
+#: endpoint it makes; a server passes on only the endpoints of the topics a participant
+#: uses, so smaller participants cut both. Under simple discovery every participant hears
+#: of everything, so there the host keeps one. Measured: docs/performance.md#starting-1000-robots
+#: (``bench/bench_startup.py --profile launch``).
 ROBOTS_PER_PARTICIPANT = 100
 
 

@@ -1,6 +1,5 @@
 """The sampling frame of TCACS (docs/design.md#tcacs-step-5, #tcacs-step-6): the rotation
-fitted to the
-promising points, and the weights of their spread along its axes."""
+fitted to the promising points, and the weights of their spread along its axes."""
 
 from __future__ import annotations
 

@@ -101,11 +101,9 @@ CAMERA_TOPICS = {
 }
 #: Deeper queues than the publishers' so that a busy recorder loses nothing: the
 #: middleware's threads go on receiving (and acknowledging) into them while the
-#: recorder's executor is held up, so they bound how long it may be: 1000 messages,
-#: 20 s at 50 Hz. With 100 (2 s) a fresh-clone CI's soak lost one command of four
-#: robots to a 2-s stall on a shared machine, and the hour's soak 8 479 messages while
-#: other tests shared the cores (docs/reliability.md). The queues hold messages only
-#: while the recorder lags, so a deep one costs memory only then.
+#: recorder's executor is held up, so they bound how long it may be (1000 messages:
+#: 20 s at 50 Hz). They hold messages only while the recorder lags, so a deep one costs
+#: memory only then. docs/reliability.md#runs-of-hours.
 QUEUE_DEPTH = 1000
 #: Wall seconds between chunk flushes: what a recorder killed with SIGKILL can lose.
 FLUSH_PERIOD = 1.0
