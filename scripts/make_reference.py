@@ -26,33 +26,25 @@ sys.path.insert(0, str(ROOT))
 
 from aes_ros.cli.reference import (  # noqa: E402
     GENERATED,
+    NODES,
     cell,
     cli_markdown,
     console_scripts,
     endpoints_markdown,
 )
+from aes_ros.ros.parameter_table import NODE_PARAMETERS, node_label  # noqa: E402
 
 CLI_DOC = ROOT / "docs" / "cli.md"
 INTERFACE_DOC = ROOT / "docs" / "interface.md"
 TESTS_DOC = ROOT / "tests" / "README.md"
-#: The node class behind each console script that starts one node.
-NODES = {
-    "aes-sim-bridge": "sim_bridge.node:SimBridgeNode",
-    "aes-supervisor": "supervisor_node.node:SupervisorNode",
-    "aes-robot-node": "robot_node.node:RobotNode",
-    "aes-robot-host": "robot_node.host:RobotHostNode",
-    "aes-dashboard": "dashboard_node.node:DashboardNode",
-    "aes-arena-camera": "sim_bridge.camera_node:ArenaCameraNode",
-    "aes-tracker": "tracker_node.node:TrackerNode",
-}
 #: Declared by rclpy for every node.
 RCLPY_OWN = {"use_sim_time", "start_type_description_service"}
 
 
-def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str, Any, Any]]]:
-    """The node name and ``(name, default, descriptor)`` of every parameter the node
-    class ``target`` declares, in order (the default as the code gives it, with the
-    ``combined`` scenario)."""
+def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str, str, Any, Any]]]:
+    """The node name and ``(name, type, default, descriptor)`` of every parameter the
+    node class ``target`` declares, in order (the default as the code gives it, with
+    the ``combined`` scenario; the type as the node holds it)."""
     from rclpy.parameter import Parameter
 
     module, name = target.split(":")
@@ -70,24 +62,21 @@ def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str,
     # One robot keeps a host quick; the recorded defaults are the code's, not overrides.
     overrides = [Parameter("num_robots", value=1)] if "host" in module else []
     try:
-        made.append(Recording(context=context, parameter_overrides=overrides))
+        Recording(context=context, parameter_overrides=overrides)
     except Exception:  # the tracker refuses to start without a calibration
         pass
-    node_name = made[0].get_name() if made else name
-    for node in made[:1]:
-        node.destroy_node()
-    return node_name, seen
-
-
-def _type_and_default(value: Any) -> tuple[str, str]:
-    """The parameter's type and its default as table cells (a type alone: no default)."""
-    from rclpy.parameter import Parameter
-
-    kind = value if isinstance(value, Parameter.Type) else None
-    if kind is None:
-        kind = Parameter.Type.from_parameter_value(value)
-    default = "" if isinstance(value, Parameter.Type) or value == "" else f"`{cell(value)}`"
-    return kind.name.lower().replace("_array", "[]"), default
+    node = made[0]
+    out = []
+    for pname, default, descriptor in seen:
+        if isinstance(default, Parameter.Type):  # declared with a type, no value
+            kind = default.name.lower().replace("_array", "[]")
+        else:
+            kind = node.get_parameter(pname).type_.name.lower().replace("_array", "[]")
+        shown = "" if isinstance(default, Parameter.Type) or default == "" else f"`{cell(default)}`"
+        out.append((pname, kind, shown, descriptor))
+    node_name = node.get_name()
+    node.destroy_node()
+    return node_name, out
 
 
 def parameters_markdown() -> list[str]:
@@ -106,8 +95,9 @@ def parameters_markdown() -> list[str]:
         "Set at start with `--ros-args -p name:=value`, at runtime with a parameter "
         "service unless read-only; an invalid value is refused with a reason and the old "
         "one stays. Defaults are those of the `combined` scenario: the model parameters "
-        "(`alpha`, `beta`, `k`, …) default to the scenario's values (`aes-swarm params`). "
-        "Every node also has rclpy's `use_sim_time`.",
+        "(`alpha`, `beta`, `k`, …) default to the scenario's values. The column `params` "
+        "names the `aes-swarm params` / `--set` entry a parameter stands for (`aes-swarm "
+        "params --ros` prints the same mapping). Every node also has rclpy's `use_sim_time`.",
         "",
     ]
     try:
@@ -116,21 +106,24 @@ def parameters_markdown() -> list[str]:
             if script not in scripts:
                 continue
             node_name, declared = declared_parameters(target, context)
+            table = NODE_PARAMETERS.get(node_name)
+            params_names = dict(table.rows()) if table is not None else {}
             lines += [
                 f"### {script}",
                 "",
-                f"Node `{node_name}`.",
+                f"Node `{node_label(node_name)}`.",
                 "",
-                "| parameter | type | default | what |",
-                "|---|---|---|---|",
+                "| parameter | type | default | `params` | what |",
+                "|---|---|---|---|---|",
             ]
-            for name, default, descriptor in declared:
+            for name, kind, shown, descriptor in declared:
                 if name in RCLPY_OWN:
                     continue
                 text = descriptor.description if descriptor is not None else ""
                 ro = " (read-only)" if descriptor is not None and descriptor.read_only else ""
-                kind, shown = _type_and_default(default)
-                lines.append(f"| `{name}` | {kind} | {shown} | {cell(text)}{ro} |")
+                same = params_names.get(name)
+                same = f"`{same}`" if same else ""
+                lines.append(f"| `{name}` | {kind} | {shown} | {same} | {cell(text)}{ro} |")
             lines.append("")
     finally:
         rclpy.try_shutdown(context=context)
