@@ -1,61 +1,18 @@
-"""Perception error: what an overhead camera and marker tracker show the robots (issue #25).
+"""Perception error: what an overhead camera and marker tracker show the robots.
 
-A Mona has no positioning of its own: in a lab every robot learns the poses, its
-own included, from a tracker that publishes one pose list (``/swarm/poses``,
-index = robot id). The robots therefore see the world through one shared
-**perceived frame** per run, perceived positions P̃ (N, 2) [m; odom] and
-headings Θ̃ (N,) [rad]:
+The robots see the world through one shared **perceived frame** per run: perceived
+positions P̃ (N, 2) [m; odom] and headings Θ̃ (N,) [rad]. They compute their forces
+(E1–E4, the live centroid included) from P̃ and project them on Θ̃_i (E5, E6); the
+unicycle step moves the *true* state, and the metrics (E7–E9) stay on it.
 
-- a robot computes its spring force, the drives and its rotation term (E1–E4)
-  from P̃, its own entry and its neighbours'; a rotation centre that is the
-  live centroid is the centroid of P̃;
-- its commands (E5, E6) project that force onto its perceived heading Θ̃_i;
-- the unicycle step then moves the *true* state with those commands, along the
-  true heading, as physics would. Metrics (E7–E9, centroid) stay on the true
-  state: they describe what the swarm does.
-
-Four parameters (:data:`aes_ros.params.PARAMS`), all off by default:
-
-- ``perception_sigma`` σ_p [m]: Gaussian noise, std σ_p per axis, added to
-  every perceived position at each camera update; headings are not noised;
-- ``perception_delay`` τ [s]: the frame shows the true state as it was
-  D = round(τ/Δt) steps ago (before step D, the initial state);
-- ``perception_rate`` f_cam [Hz]: the frame is refreshed at steps 0, m, 2m, …
-  with m = max(1, round(1/(f_cam·Δt))) and held in between; 0 = every step;
-- ``perception_miss``: at each refresh every robot is missed independently with
-  this probability and keeps its last perceived pose (at step 0 nobody is
-  missed: the first frame initialises every pose).
-
-Randomness. Run ``seed`` draws its perception from two generators of its own
-(:func:`perception_state`), one for the position noise, one for the misses:
-xoshiro256** (Blackman & Vigna 2018; 256-bit state, period 2²⁵⁶ − 1), seeded with
-the two children of ``np.random.SeedSequence([seed, 1])``. Standard normals come
-from the ziggurat (Marsaglia & Tsang 2000, numpy's 256-layer variant: exact
-N(0, 1) to 52-bit resolution), uniforms are 53-bit doubles in [0, 1). Not numpy
-Generators, because the simulator draws inside its numba kernel, per run on the
-run's core, at each camera update (about 4 ns a normal): numpy's draws, made
-before each kernel call and not overlapped with it, made perception on cost
-1.4–1.6 × off, above the 1.5 × issue #25 allows. The draws are one compiled
-function, :func:`aes_ros.kernel.camera_draws`, which the kernel, the numpy path
-(:func:`draw_camera`) and :class:`PerceptionStream` all call, so the three draw
-identical numbers. The run's own generator (initial state, sensing and actuation
-noise) is untouched, so a run with perception off is bit-identical to one from
-before perception existed; noise and misses are separate streams, so switching
-one on does not change the other's draws (common random numbers across a study).
-Draws are made only at camera updates and only for what is on: per update, 2N
-standard normals (robot 0's x, y, robot 1's, …) from the noise generator if
-σ_p > 0 and N uniforms from the miss generator if the miss probability is > 0,
-for every robot (a missed robot's draws are thrown away). A stream drawn an
-update at a time (:class:`PerceptionStream`) or many updates at a time
-(:func:`draw_camera`) gives the same numbers, so the stream of ``seed`` sees
-exactly what run ``seed`` of :func:`aes_ros.simulator.simulate` sees (for a
-camera at the control rate this costs as much as drawing every step would; a
-slower camera draws less).
-
-The pure functions below are the reference (the simulator's numpy backend uses
-them; the numba kernel in :mod:`aes_ros.kernel` does the same per robot);
-:class:`PerceptionStream` keeps the state of one run for a node that produces
-poses a step at a time.
+Four parameters, all off by default: ``perception_sigma`` σ_p [m] (Gaussian noise per
+axis at each camera update), ``perception_delay`` τ [s] (the state round(τ/Δt) steps
+ago), ``perception_rate`` f_cam [Hz] (refreshed every round(1/(f_cam·Δt)) steps, held
+between; 0 = every step) and ``perception_miss`` (each robot missed per refresh, keeping
+its last perceived pose; nobody at step 0). Run ``seed`` draws them from two generators
+of its own, never the run's, through one compiled :func:`aes_ros.kernel.camera_draws`
+shared by the kernel, :func:`draw_camera` and :class:`PerceptionStream`, so all three
+see identical numbers (docs/model.md#perception-error).
 """
 
 from __future__ import annotations
