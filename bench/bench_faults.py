@@ -11,14 +11,14 @@ the bridge's ``/clock`` (the swarm's ``cmd_vel`` too), the recorder's
 ``/recorder/progress``. The launcher's own view (from the death it noticed to the
 restarted process's ready line, ``events.csv``) is printed next to it. Also
 reported: the largest gap of sim time in the run's ``metrics.csv`` and whether the
-launcher exited 0. Repeated ``--repeats`` times.
+launcher exited 0. Repeated ``--runs`` times.
 
 Targets (issue #11): robot host and supervisor <= 3 s, bridge <= 5 s.
 
 Usage::
 
     python bench/bench_faults.py                 # 3 runs of 16 robots (~3 min)
-    python bench/bench_faults.py --repeats 1 --robots 36
+    python bench/bench_faults.py --runs 1 --robots 36
 
 Prints a table and, as its last line, ``RESULT robot_host_s=<max>
 supervisor_s=<max> bridge_s=<max> recorder_s=<max> gap_s=<max> targets_met=<yes|no>``;
@@ -47,6 +47,8 @@ from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
+from aes_ros.cli.deprecated import add_deprecated
+from aes_ros.cli.options import MAX_RUNS, number_type
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.launch.processes import fastdds_environment
@@ -176,7 +178,11 @@ def one_run(robots: int, domain: str, work: Path) -> dict[str, float]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", type=int, default=16)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument(
+        "--runs", type=number_type(int, 1, MAX_RUNS), default=3, metavar="N",
+        help="fault runs of each kind (default 3)",
+    )  # fmt: skip
+    add_deprecated(parser, "--repeats", "--runs")
     parser.add_argument("--domain", default="97", help="the ROS_DOMAIN_ID of the runs")
     parser.add_argument("--out", type=Path, default=Path("out/bench_faults"))
     args = parser.parse_args(argv)
@@ -185,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.update(fastdds_environment(dict(os.environ)))
     args.out.mkdir(parents=True, exist_ok=True)
     runs = []
-    for k in range(args.repeats):
+    for k in range(args.runs):
         with tempfile.TemporaryDirectory(prefix="aes-bench-faults-") as work:
             took = one_run(args.robots, args.domain, Path(work))
         runs.append(took)

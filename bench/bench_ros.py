@@ -19,7 +19,7 @@ Usage::
     python bench/bench_ros.py                       # the standard grid (~15 min)
     python bench/bench_ros.py --robots 100 --rates 50 --sources poses --layouts auto,per-core
     python bench/bench_ros.py --quick               # smoke version for CI (~30 s)
-    python bench/bench_ros.py --robots 1000 --rates 20 --discovery simple,server --repeat 3 \
+    python bench/bench_ros.py --robots 1000 --rates 20 --discovery simple,server --runs 3 \
         --no-baseline                               # discovery modes side by side (~15 min)
     python bench/bench_ros.py --physics             # only the bridge physics line
 
@@ -70,6 +70,8 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
+from aes_ros.cli.deprecated import add_deprecated
+from aes_ros.cli.options import MAX_RUNS, number_type
 from aes_ros.ros.discovery import SERVER_PROCESS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -519,8 +521,10 @@ def main(argv: list[str] | None = None) -> int:
         help="simple,server,auto: measured side by side, one after the other (auto: as launch)",
     )  # fmt: skip
     parser.add_argument(
-        "--repeat", type=int, default=1, help="runs of the whole grid, the modes interleaved"
-    )
+        "--runs", type=number_type(int, 1, MAX_RUNS), default=1, metavar="N",
+        help="runs of the whole grid, the modes interleaved (default 1)",
+    )  # fmt: skip
+    add_deprecated(parser, "--repeat", "--runs")
     parser.add_argument("--warmup", type=float, default=3.0, help="wall seconds before measuring")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--out", type=Path, default=Path("out/bench_ros"))
@@ -553,10 +557,7 @@ def main(argv: list[str] | None = None) -> int:
         tqdm = None
     modes = args.discovery.split(",")
     runs = [
-        (run, *config, mode)
-        for run in range(1, args.repeat + 1)
-        for config in grid
-        for mode in modes
+        (run, *config, mode) for run in range(1, args.runs + 1) for config in grid for mode in modes
     ]
     configs = tqdm(runs, desc="configurations", file=sys.stderr) if tqdm else runs
     for run, n, rate, source, layout, mode in configs:

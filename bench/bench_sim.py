@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 from aes_ros import scenario, simulator
+from aes_ros.cli.options import duration_type
 from aes_ros.scenario import Scenario
 
 #: A lab's overhead tracker (aes_ros.perception): 3 mm noise, 50 ms late, 20 Hz, 1 % missed.
@@ -105,7 +106,10 @@ def perception_cost(sc: Scenario, batch: int, repeat: int = 5) -> tuple[float, f
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--batches", type=int, nargs="+", default=[1, 10, 150, 1500])
-    parser.add_argument("--duration", type=float, default=30.0, help="simulated seconds per run")
+    parser.add_argument(
+        "--duration", type=duration_type(open_ended=False), default=30.0, metavar="S",
+        help="simulated seconds per run (default 30)",
+    )  # fmt: skip
     parser.add_argument(
         "--perception-batch", type=int, default=150, help="runs B of the perception on/off rows"
     )

@@ -64,6 +64,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aes_ros.cli.options import duration_type
 from aes_ros.ros.bag import SequenceGaps, bag_is_closed, bag_segments, raw_messages, read_journal
 from aes_ros.ros.launch import processes as launch_processes
 from aes_ros.ros.launch.events import read_events
@@ -435,7 +436,10 @@ def plot(samples: list[Sample], kills: list[Kill], path: Path) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--duration", type=float, default=3600.0, help="sim seconds [s]")
+    parser.add_argument(
+        "--duration", type=duration_type(open_ended=False), default=3600.0, metavar="S",
+        help="sim seconds [s] (default 3600)",
+    )  # fmt: skip
     parser.add_argument("--chaos", type=float, default=0.0, metavar="PERIOD",
                         help="kill a random process every PERIOD s (0: none)")  # fmt: skip
     parser.add_argument("--robots", type=int, default=100)

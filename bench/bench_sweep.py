@@ -1,8 +1,8 @@
 """Sweep throughput here and on local Dask workers, and Dask's overhead, side by side.
 
-One sweep (combined setup, 100 robots, 30 s, ``--mc 10``, 12 points a task: a task
+One sweep (combined setup, 100 robots, 30 s, ``--runs 10``, 12 points a task: a task
 is about 1 s of one core) is run four ways in this process, each after a warm-up,
-alternating, ``--repeats`` times (best kept):
+alternating, ``--trials`` times (best kept):
 
 - ``local_1``: the tasks one after the other in a process of their own started with
   ``NUMBA_NUM_THREADS=1`` and the environment Dask gives its workers (one BLAS and
@@ -19,7 +19,7 @@ cores (target: within 15 %). Every variant's table must equal the others'.
 Usage::
 
     python bench/bench_sweep.py                 # ~2 min
-    python bench/bench_sweep.py --points 48 --repeats 1
+    python bench/bench_sweep.py --points 48 --trials 1
 
 Last line: ``RESULT local_1=… dask_1=… local_2=… dask_2=… overhead_1_pct=…
 overhead_2_pct=… identical=yes targets_met=yes|no`` (throughputs in agent-steps/s).
@@ -41,6 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario
+from aes_ros.cli.deprecated import add_deprecated
+from aes_ros.cli.options import MAX_RUNS, number_type
 from aes_ros.sweep.engine import Sweep, local_cluster, results
 from aes_ros.sweep.runs import make_tasks
 from aes_ros.sweep.spec import parse_axis, points
@@ -64,7 +66,7 @@ def timed_local(threads: int, args: argparse.Namespace, work: Path) -> tuple[flo
     """The tasks in a fresh process with ``NUMBA_NUM_THREADS=threads`` (warmed up first)."""
     out = work / f"local_{threads}.json"
     cmd = [sys.executable, __file__, "--child", str(out), "--points", str(args.points),
-           "--mc", str(args.mc), "--points-per-task", str(args.points_per_task)]  # fmt: skip
+           "--runs", str(args.runs), "--points-per-task", str(args.points_per_task)]  # fmt: skip
     import dask
 
     # the environment Dask's nanny gives its workers (one BLAS/OpenMP thread, malloc
@@ -78,7 +80,7 @@ def timed_local(threads: int, args: argparse.Namespace, work: Path) -> tuple[flo
 
 def child(args: argparse.Namespace) -> int:
     """``--child FILE``: warm up, time the tasks here, write the wall time and rows."""
-    sweep = make_sweep(args.points, args.mc)
+    sweep = make_sweep(args.points, args.runs)
     warm = make_sweep(4, 1)
     timed(warm, make_tasks(warm.names, warm.points, set(), 4))
     wall, rows = timed(sweep, make_tasks(sweep.names, sweep.points, set(), args.points_per_task))
@@ -89,9 +91,17 @@ def child(args: argparse.Namespace) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--points", type=int, default=96, help="points of the sweep")
-    parser.add_argument("--mc", type=int, default=10)
+    parser.add_argument(
+        "--runs", type=number_type(int, 1, MAX_RUNS), default=10, metavar="N",
+        help="Monte-Carlo runs per point (default 10)",
+    )  # fmt: skip
+    add_deprecated(parser, "--mc", "--runs")
     parser.add_argument("--points-per-task", type=int, default=12)
-    parser.add_argument("--repeats", type=int, default=2)
+    parser.add_argument(
+        "--trials", type=number_type(int, 1), default=2, metavar="N",
+        help="timings of each configuration, the best kept (default 2)",
+    )  # fmt: skip
+    add_deprecated(parser, "--repeats", "--trials")
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child is not None:
@@ -99,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("distributed").setLevel(logging.WARNING)
     work = Path(tempfile.mkdtemp(prefix="aes-bench-sweep-"))
 
-    sweep = make_sweep(args.points, args.mc)
+    sweep = make_sweep(args.points, args.runs)
     tasks = make_tasks(sweep.names, sweep.points, set(), args.points_per_task)
     warm = make_sweep(4, 1)
     warm_tasks = make_tasks(warm.names, warm.points, set(), 4)
@@ -118,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     best: dict[str, float] = {}
     tables: dict[str, list] = {}
     try:
-        for r in range(args.repeats):
+        for r in range(args.trials):
             for name, k in (("local_1", 1), ("dask_1", 1), ("local_2", 2), ("dask_2", 2)):
                 if name.startswith("local"):
                     wall, rows = timed_local(k, args, work)

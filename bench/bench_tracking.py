@@ -76,7 +76,8 @@ Usage::
 
     python bench/bench_tracking.py --out docs/perf/tracking  # both configurations, closed loop
     python bench/bench_tracking.py --quick                   # 25 robots 1280x960, no closed loop
-    python bench/bench_tracking.py --robots 9 --camera 640x480 --arena 1.2x0.9 --seconds 5 --quick
+    python bench/bench_tracking.py --robots 9 --camera-size 640x480 --arena 1.2x0.9 \\
+        --seconds 5 --quick
 
 Writes ``bench_tracking.txt`` (what it printed) and ``bench_tracking.csv`` (the RESULT
 rows) to ``--out`` (default ``out/bench_tracking``). Run it in a ROS domain of its own.
@@ -98,6 +99,7 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
+from aes_ros.cli.deprecated import add_deprecated
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_ros import cpu_seconds, machine_reference_us  # a sibling script, not a package
@@ -431,7 +433,7 @@ def closed_loop_run(n: int, arena, seed: int, seconds: float, camera, tracking: 
         "--duration", f"{seconds:g}", "--out", str(out),
     ]  # fmt: skip
     if tracking:
-        argv += ["--tracking", "camera", "--camera", f"{camera[0]}x{camera[1]}"]
+        argv += ["--tracking", "camera", "--camera-size", f"{camera[0]}x{camera[1]}"]
     done = subprocess.run(argv, capture_output=True, text=True, timeout=600)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(argv[1:])} failed:\n{done.stdout[-2000:]}{done.stderr}")
@@ -643,7 +645,7 @@ def configurations(args) -> list[tuple[int, tuple[int, int], tuple[float, float]
     for k in range(count):
         n = pick(robots, k)
         default = known.get(n, (n, (1280, 960), None))
-        camera = pick(args.camera, k) or default[1]
+        camera = pick(args.camera_size, k) or default[1]
         out.append((n, tuple(camera), pick(args.arena, k) or default[2]))
     return out
 
@@ -651,7 +653,11 @@ def configurations(args) -> list[tuple[int, tuple[int, int], tuple[float, float]
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", type=_list(int), help="robot counts, e.g. 25,100")
-    parser.add_argument("--camera", type=_list(_pair(int)), help="WxH [px] each, e.g. 1280x960")
+    parser.add_argument(
+        "--camera-size", type=_list(_pair(int)), metavar="WxH,…",
+        help="image sizes [px], one per configuration, e.g. 1280x960",
+    )  # fmt: skip
+    add_deprecated(parser, "--camera", "--camera-size")
     parser.add_argument("--arena", type=_list(_pair(float)), help="WxH [m] each, e.g. 2.0x1.5")
     parser.add_argument(
         "--seconds",

@@ -144,7 +144,7 @@ def main() -> None:
         "--runs", type=number_type(int, 1, MAX_RUNS), default=10, metavar="N",
         help="Monte-Carlo runs per candidate (default 10)",
     )  # fmt: skip
-    add_deprecated(parser, "--mc", "--runs", prog="compare_optimizers")
+    add_deprecated(parser, "--mc", "--runs")
     parser.add_argument("--held-out", type=int, default=20, help="fresh runs per returned x")
     parser.add_argument(
         "--out", type=Path, default=Path("out/compare_optimizers"), metavar="DIR",

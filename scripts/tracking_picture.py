@@ -1,7 +1,7 @@
 """The README's tracking picture: a simulated overhead camera frame with the markers the
 tracker found drawn on it, beside the true and the tracked positions.
 
-    .venv/bin/python scripts/tracking_picture.py --out docs/tracking/tracking.png
+    .venv/bin/python scripts/tracking_picture.py --out docs/tracking    # DIR/tracking.png
 
 25 robots of the combined scenario over a 2.0 × 1.5 m arena, 1280 × 960 px, σ = 2 grey
 levels of noise, 0.6 px blur, mild barrel distortion; the camera is calibrated from the
@@ -32,7 +32,11 @@ from tracker_node.pose import marker_poses
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("docs/tracking/tracking.png"))
+    parser.add_argument(
+        "--out", type=Path, default=Path("out/tracking"), metavar="DIR",
+        help="the directory this command writes tracking.png to (default out/tracking; "
+        "the README's: docs/tracking)",
+    )  # fmt: skip
     args = parser.parse_args()
     arena = [-1.0, 1.0, -0.75, 0.75]
     camera = arena_camera(arena, 1280, 960, 60.0, distortion=[-0.05, 0.01, 0.0, 0.0, 0.0])
@@ -69,10 +73,11 @@ def main() -> None:
     )
     right.legend(loc="lower right")
     fig.tight_layout()
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(args.out, dpi=80)
+    args.out.mkdir(parents=True, exist_ok=True)
+    picture = args.out / "tracking.png"
+    fig.savefig(picture, dpi=80)
     rms = np.sqrt(np.mean(error_mm**2))
-    print(f"wrote {args.out}: {int(robots.sum())}/25 robots, RMS {rms:.3f} mm")
+    print(f"wrote {picture}: {int(robots.sum())}/25 robots, RMS {rms:.3f} mm")
 
 
 if __name__ == "__main__":

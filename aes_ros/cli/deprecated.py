@@ -1,7 +1,7 @@
 """Old flag spellings that keep working for one release, with a warning on stderr.
 
 An old spelling parses to the ``dest`` of its new flag, is hidden from ``--help`` and
-prints one line such as ``aes-swarm: --mc is deprecated; use --runs``::
+prints one line such as ``aes-swarm sweep: --mc is deprecated; use --runs``::
 
     p.add_argument("--runs", type=int, default=10, help="Monte-Carlo runs")
     add_deprecated(p, "--mc", "--runs")
@@ -39,17 +39,18 @@ def add_deprecated(
     old: str,
     new: str,
     *,
-    prog: str = "aes-swarm",
+    prog: str | None = None,
 ) -> argparse.Action:
     """Let ``old`` stand for the already added flag ``new``: same ``dest``, ``type``,
-    ``nargs`` and ``metavar``; hidden from ``--help``."""
+    ``nargs`` and ``metavar``; hidden from ``--help``; the warning names ``prog``
+    (default: the parser's)."""
     target = next(a for a in parser._actions if new in a.option_strings)
     return parser.add_argument(
         old,
         action=DeprecatedFlag,
         dest=target.dest,
         new=new,
-        prog=prog,
+        prog=prog or getattr(parser, "prog", "aes-swarm"),
         type=target.type,
         nargs=target.nargs,
         metavar=target.metavar,

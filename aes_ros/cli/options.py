@@ -101,7 +101,7 @@ def add_seed_option(p: argparse.ArgumentParser, what: str = "") -> None:
 
 
 #: Commands where ``--duration 0`` means "until Ctrl-C".
-OPEN_ENDED = "launch, bench_soak"
+OPEN_ENDED = "launch"
 
 
 def duration_type(open_ended: bool) -> Callable[[str], float]:

@@ -29,7 +29,7 @@ def bench() -> Iterator[ModuleType]:
 @pytest.mark.alone  # a benchmark: rates, latency, CPU
 def test_quick_run_tracks_every_robot(ros_env, tmp_path) -> None:
     out = subprocess.run(
-        [sys.executable, str(BENCH), "--quick", "--robots", "9", "--camera", "640x480",
+        [sys.executable, str(BENCH), "--quick", "--robots", "9", "--camera-size", "640x480",
          "--arena", "1.2x0.9", "--seconds", "4", "--warmup", "1", "--out", str(tmp_path)],
         env=ros_env, capture_output=True, text=True, timeout=150,
     )  # fmt: skip

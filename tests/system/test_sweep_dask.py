@@ -22,7 +22,7 @@ BIN = Path(sys.executable).parent
 #: 400 robots, 20 s, 4 runs a point, one point a task: a few tenths of a second each,
 #: so that a worker can be killed while the sweep is under way.
 SWEEP = [
-    "--setup", "linear", "--robots", "400", "--duration", "20", "--mc", "4",
+    "--setup", "linear", "--robots", "400", "--duration", "20", "--runs", "4",
     "--param", "alpha=0.02:0.2:4", "--param", "d_theta=0:0.2:6", "--points-per-task", "1",
     "--no-progress",
 ]  # fmt: skip

@@ -28,7 +28,7 @@ from aes_ros.cli import main
 
 BIN = Path(sys.executable).parent
 SWEEP = [
-    "--setup", "linear", "--robots", "9", "--duration", "1", "--mc", "2",
+    "--setup", "linear", "--robots", "9", "--duration", "1", "--runs", "2",
     "--param", "alpha=0.02:0.2:2", "--no-progress",
 ]  # fmt: skip
 

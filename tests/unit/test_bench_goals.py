@@ -166,7 +166,7 @@ def test_discovery_modes_are_measured_interleaved_and_judged_side_by_side(
         return row(bench, robots, rate, source, us=200.0, median=median, start=start + run,
                    discovery=discovery, run=run)  # fmt: skip
 
-    argv = ["--robots", "1000", "--rates", "20", "--discovery", "simple,server", "--repeat", "2"]
+    argv = ["--robots", "1000", "--rates", "20", "--discovery", "simple,server", "--runs", "2"]
     _, text = run_main(bench, monkeypatch, tmp_path, *argv, "--no-baseline", measure=measure)
     assert measured == [(1, "simple"), (1, "server"), (2, "simple"), (2, "server")]
     assert "  simple  moving after 44.0/45.0 s; answered 17.6/17.6 Hz" in text

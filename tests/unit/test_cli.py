@@ -188,7 +188,7 @@ def test_bad_sweep_specs_exit_2_naming_the_field(
 
 
 def test_sweep_writes_its_table_and_resumes(tmp_path: Path, aes_swarm) -> None:
-    args = ["sweep", "--setup", "linear", "--robots", "9", "--duration", "2", "--mc", "2",
+    args = ["sweep", "--setup", "linear", "--robots", "9", "--duration", "2", "--runs", "2",
             "--param", "beta=0.5,1", "--no-progress", "--out", str(tmp_path)]  # fmt: skip
     first = aes_swarm(*args)
     assert first.returncode == 0, first
