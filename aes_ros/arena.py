@@ -28,21 +28,11 @@ The rule (``margin`` m, ``release`` = :data:`RELEASE_FACTOR` × ``margin``):
    again; it is never re-aimed while the swarm turns (no flapping between
    directions at every pose).
 
-Default margin (:data:`DEFAULT_MARGIN`, ``arena_margin``): the robot's radius plus
-the distance a robot covers at its top speed during the keeper's reaction time,
-``0.04 m + 0.13 m/s × 1 s = 0.17 m``, so that the body, not only the centre, stays
-inside. The reaction time covers one pose period (a robot may enter the margin
-just after a sample: 0.05 s at 20 Hz), the command's way to the robots and their
-next control step (≈ 0.1 s), and, most of it, the sheet turning round: a U-turn
-is the slow case (driven straight against their headings the robots move at
-v_0 − α w_l |v_d| ≈ 0 (E5) and leave that unstable heading only as fast as the
-noise lets them), and the noise (D_r) keeps every robot jittering meanwhile.
-Measured with this rule in the loop (the linear setup on 9 robots driving at a
-wall, top speed 0.13 m/s, noise on, the new command reaching the robots 0.25 s
-late, 300 seeds): a robot's centre went at most 0.126 m past the margin (95 % of
-runs: under 0.08 m), ≈ 0.13 m/s × 1 s; 4 and 25 robots and ω = −0.7 went less
-far, a command 0.4 s late 0.132 m (``tests/unit/test_arena_keeper_rule.py`` runs this loop).
-A camera in the loop adds its delay τ: raise the margin by 0.13 m/s × τ.
+Default margin (:data:`DEFAULT_MARGIN`, ``arena_margin``): the robot's radius plus what
+a robot covers at top speed during the keeper's reaction time, ``0.04 m + 0.13 m/s × 1 s``,
+so that the body stays inside; the reaction time is mostly the sheet turning round
+(docs/ros.md#parameters; ``tests/unit/test_arena_keeper_rule.py`` runs the loop). A camera
+in the loop adds its delay τ: raise the margin by 0.13 m/s × τ.
 """
 
 from __future__ import annotations
