@@ -26,16 +26,21 @@ a second each (bursts of 20) and 20 a second of all of them together.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import hmac
 import json
+import threading
 import time
 from importlib import resources
-from typing import Any
+from typing import Any, Protocol
 
 from aiohttp import WSMsgType, web
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.parameter import Parameter
 
 from aes_ros.ros import interface as names
 from aes_ros.ros.dashboard_token import new_token, with_token
+from aes_ros.ros.node_tools import ThrottledWarnings
 from dashboard_node.access import (
     CONTROL_RATE,
     MAX_VIEWERS,
@@ -43,8 +48,9 @@ from dashboard_node.access import (
     Site,
     is_loopback,
 )
-from dashboard_node.controls import ControlError, RateLimit, SetGain, parse_control
-from dashboard_node.node import CALL_TIMEOUT, DashboardNode
+from dashboard_node.controls import Control, ControlError, RateLimit, SetGain, parse_control
+from dashboard_node.requests import CALL_TIMEOUT
+from dashboard_node.view import SwarmView
 
 #: Files the page may load (nothing else under static/ is served).
 ASSETS = {"index.html": "text/html", "app.js": "text/javascript", "style.css": "text/css"}
@@ -71,6 +77,26 @@ def needs_token(host: str) -> bool:
     return not is_loopback(host)
 
 
+class DashboardSource(Protocol):
+    """What the web server uses of its node (:class:`dashboard_node.node.DashboardNode`)."""
+
+    lock: threading.Lock
+    view: SwarmView
+    markers_published: int
+    frames_made: int
+    _warn: ThrottledWarnings
+
+    def submit(self, control: Control) -> concurrent.futures.Future: ...
+
+    def accepted(self, control: SetGain) -> None: ...
+
+    def frame_tick(self, viewers: bool, now: float) -> dict[str, Any] | None: ...
+
+    def get_parameter(self, name: str) -> Parameter: ...
+
+    def get_logger(self) -> RcutilsLogger: ...
+
+
 class Dashboard:
     """The web side of one dashboard node; ``token`` None: one is made up. With
     ``print_url`` the URL with the token goes to stdout once listening (the node's
@@ -78,7 +104,7 @@ class Dashboard:
 
     def __init__(
         self,
-        node: DashboardNode,
+        node: DashboardSource,
         host: str,
         port: int,
         token: str | None = None,

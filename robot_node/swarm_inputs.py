@@ -18,7 +18,7 @@ liveness of its other neighbours only (:attr:`version` changes with that set).
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -29,7 +29,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from aes_ros.model import RobotInput, SwarmCommand, evaluate_robots
+from aes_ros.model import RobotCommand, RobotInput, SwarmCommand, evaluate_robots
 from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_odometry, decode_pose_array
@@ -37,14 +37,32 @@ from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns
 from aes_ros.ros.diagnostics import lost_robots
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, SENSOR
+from robot_node.controller import RobotController
 from robot_node.rotation_center import rotation_center_rule
-
-if TYPE_CHECKING:
-    from robot_node.node import RobotNode
 
 #: Wall seconds an odometry batch waits for its last robots (the bridge publishes a
 #: step's odometry within a millisecond or two).
 ODOM_WAIT = 0.004
+
+
+class InputRobot(Protocol):
+    """What :class:`SwarmInputs` needs of a robot it feeds (:class:`robot_node.node.RobotNode`)."""
+
+    controller: RobotController
+
+    @property
+    def robot_id(self) -> int: ...
+
+    @property
+    def uses_poses(self) -> bool: ...
+
+    def poses_input(
+        self, stamp_ns: int, positions: np.ndarray, headings: np.ndarray, centroid: np.ndarray
+    ) -> RobotInput | None: ...
+
+    def on_odom(self, sec: int, nanosec: int, x: float, y: float, yaw: float) -> None: ...
+
+    def publish_command(self, stamp: Time, result: RobotCommand) -> None: ...
 
 
 class SwarmInputs:
@@ -52,7 +70,7 @@ class SwarmInputs:
 
     def __init__(self, node: Node, command: SwarmCommand) -> None:
         self.node = node
-        self.robots: list[RobotNode] = []
+        self.robots: list[InputRobot] = []
         #: The rotation centre rule of every robot here: they all hear the same poses
         #: and centres. Fed once per message instead of once per robot: a 1000-robot
         #: host at 20 Hz 100 / 98 % -> 88 / 89 % of a core (bench_ros, two A/B pairs).
@@ -62,16 +80,16 @@ class SwarmInputs:
         self._warn = ThrottledWarnings(node.get_logger())
         self._poses_sub = None
         #: The robots of :attr:`robots` in the ``poses`` source (the others read odometry).
-        self._poses_robots: list[RobotNode] = []
+        self._poses_robots: list[InputRobot] = []
         self._odom_robots = 0
-        self._odom_pending: dict[RobotNode, tuple[Time, RobotInput]] = {}
+        self._odom_pending: dict[InputRobot, tuple[Time, RobotInput]] = {}
         self._odom_since = 0.0
         self._odom_timer = None
         self._odom_subs: dict[str, Any] = {}
         #: topic -> (robot, neighbour id, or None: the robot's own odometry)
-        self._odom_listeners: dict[str, list[tuple[RobotNode, int | None]]] = {}
+        self._odom_listeners: dict[str, list[tuple[InputRobot, int | None]]] = {}
         #: robot -> the topics it is handed (listen_odom's argument)
-        self._odom_topics: dict[RobotNode, dict[str, int | None]] = {}
+        self._odom_topics: dict[InputRobot, dict[str, int | None]] = {}
         node.create_subscription(
             TwistStamped, names.DESIRED_VELOCITY, self.on_desired_velocity, LATCHED
         )
@@ -85,7 +103,7 @@ class SwarmInputs:
 
     # --- the robots of this process -------------------------------------------------
 
-    def add(self, robot: RobotNode) -> None:
+    def add(self, robot: InputRobot) -> None:
         # Sorted in for the new robot alone: re-sorting all was quadratic in a host
         # adding its robots one by one.
         self.robots.append(robot)
@@ -94,7 +112,7 @@ class SwarmInputs:
             self._poses_robots.append(robot)
         self._update()
 
-    def remove(self, robot: RobotNode) -> None:
+    def remove(self, robot: InputRobot) -> None:
         self.listen_odom(robot, {})
         if robot in self.robots:
             self.robots.remove(robot)
@@ -133,7 +151,9 @@ class SwarmInputs:
         """Robot ids run by this process."""
         return {robot.robot_id for robot in self.robots}
 
-    def listen_odom(self, robot: RobotNode, topics: dict[str, int | None]) -> dict[str, int | None]:
+    def listen_odom(
+        self, robot: InputRobot, topics: dict[str, int | None]
+    ) -> dict[str, int | None]:
         """From now on hand ``robot`` the odometry of ``topics`` (topic -> the neighbour
         id it belongs to, or None for the robot's own), and no other; returns what it
         was handed before.
@@ -206,7 +226,7 @@ class SwarmInputs:
         for robot, result in zip(acting, evaluate_robots(inputs), strict=True):
             robot.publish_command(stamp, result)
 
-    def odom_input(self, robot: RobotNode, stamp: Time, job: RobotInput) -> None:
+    def odom_input(self, robot: InputRobot, stamp: Time, job: RobotInput) -> None:
         """An ``odom``-source robot's input for its own odometry at ``stamp``.
 
         The bridge publishes every robot's odometry of a step at once, so the inputs
