@@ -1,76 +1,13 @@
 """Benchmark of camera-in-the-loop tracking: the simulated overhead camera and the ArUco
-tracker as real processes, measured against the bridge's exact poses (issue #21).
+tracker as real processes, measured against the bridge's exact poses.
 
-**Tracking.** For each configuration (robots, camera resolution, arena) it starts the
-system as ``aes-swarm launch --tracking camera --set arena=[…]`` does (in-process
-:class:`~aes_ros.ros.launch.Launcher`, as ``bench/bench_ros.py``): ``aes-sim-bridge``
-(combined scenario, its exact poses remapped to ``/sim/ground_truth/poses``),
-``aes-arena-camera`` and ``aes-tracker`` (the arena's corner reference markers from
-``corner_layout``/``save_layout``), the supervisor (whose arena keeper keeps the swarm
-in the camera's view) and a robot host that reads ``/swarm/poses`` from the tracker.
-It waits until every robot moves, so the swarm is driven by what the camera sees, lets
-it run ``--warmup`` s and measures ``--seconds`` s of wall time. A probe node in this
-process reads ``/swarm/poses`` (tracker) and ``/sim/ground_truth/poses`` (bridge) raw
-(:func:`aes_ros.ros.cdr.decode_pose_array`), ``/clock`` and ``/diagnostics``, and
-pairs the two pose streams by stamp (the tracker stamps a frame with its exposure, the
-sim time of the exact poses it shows). One ``RESULT`` line per configuration:
-
-- ``fps``: tracker ``/swarm/poses`` messages per wall second; ``fps_sim``: frames
-  tracked per second of sim (camera) time, from the stamps: the camera exposes at 20 Hz
-  of sim time, so 20 means every frame was tracked (``fps`` = ``fps_sim`` × RTF);
-- ``detection_rate``: robots whose tracked pose changed from the previous tracker
-  message over robots × messages (an unseen robot keeps its last pose bit for bit;
-  a seen one never does: the image noise moves its estimate); ``detection_rate_clear``:
-  the same over the robots whose body overlaps no other's (base_links >= 80 mm apart;
-  ``overlapping``: the share that do). The bridge's default kinematic mode has no
-  collisions, so now and then two bodies interpenetrate and one marker hides under the
-  other's top, which no tracker could see and no real arena shows; ``diag_detection_rate``:
-  the mean of ``detected / expected`` of the tracker's ``/diagnostics`` (once a second);
-- ``pos_rms_mm``, ``heading_rms_deg``: tracked against exact ``base_link`` poses at
-  equal stamps, over the robots detected in that frame;
-- ``latency_p50_ms``, ``latency_p99_ms``: exposure → arrival of the tracker's
-  ``/swarm/poses`` here. The stamp is sim time; it is converted to this process's wall
-  clock with the bridge's sim/wall offset measured from ``/clock``: for every ``/clock``
-  message, offset = its arrival time (``time.monotonic``) − its sim time; at real-time
-  factor 1 that is constant but for delays, so the offset of a stamp is the smallest
-  one among the ``/clock`` messages within ±0.5 s of sim time around it (the one that
-  came through fastest; ±0.5 s keeps the error of a real-time factor 2 % off 1 under
-  10 ms). latency = arrival − (stamp + offset): a frame the bridge produced late
-  counts its lateness in. ``latency_truth_p50_ms``/``_p99_ms`` check it another way:
-  arrival of the tracked poses − arrival here of the exact poses with the same stamp.
-  ``camera_part_*``: exposure → arrival of the frame's ``camera_info`` (published just
-  after its image: render, encode, hand the image to DDS); ``tracker_part_*``: from there
-  to the tracked poses (the image's transfer, ~20 UDP fragments per 1.2 MB as it exceeds
-  Fast DDS's shared-memory segment; waiting for the tracker; detection; pose; publish);
-- ``rtf``: sim seconds per wall second of ``/clock`` over the window;
-- ``cpu_tracker_pct``, ``cpu_camera_pct`` (and the whole system's) [% of one core]
-  from ``/proc/<pid>/stat`` over the window; ``tracker_ms_per_frame``: tracker CPU per
-  frame tracked; ``camera_ms_per_frame``: camera CPU per frame exposed (render, encode,
-  publish); ``render_ms`` and ``detect_ms``: median wall ms of
-  :class:`~sim_bridge.camera_render.CameraRenderer` with the camera node's settings and
-  of :func:`~tracker_node.detection.detect_markers`, in this process on the run's
-  exact poses after the system stopped (where the time goes, without ROS);
-- ``machine_ref_us``: µs of one agent-step of ``bench/bench_sim.py``'s per-agent loop
-  (as ``bench_ros.py``; before and after the run, the mean), the machine's speed.
-
-**Closed loop** (``--closed-loop``, the default unless ``--quick``): the combined
-scenario with one seed and one arena (``--set arena=[…]``, so the supervisor's arena
-keeper acts the same way) run with ``aes-swarm launch`` for ``--closed-loop-seconds``
-of sim time, ``--closed-loop-runs`` times with ``--tracking camera`` and as often (at
-least twice) on the exact poses, interleaved. Runs that are not lockstep differ from
-run to run by their timing alone, and with the keeper turning the swarm at the walls
-those differences grow: one pair of exact runs came out 0.008 apart in ψ̄_heading with
-centroid tracks 12 mm RMS apart, another pair 0.032 and 334 mm. So one tracked run
-against one exact run says little; the ``RESULT closed_loop`` line gives from each
-run's ``metrics.csv`` the mean over the runs of each kind of ψ̄, ψ̄_heading and F̄/N
-(and their standard deviations), ``dpsi``/``dpsi_heading``: |difference of the two
-means| with its standard error (``_se``, from the pooled deviation), which is what the
-target judges; and the fair baseline beside it: the mean |Δψ̄|, |Δψ̄_heading| and RMS
-distance of the centroid tracks at equal times since the start, over every pair of a
-tracked and an exact run (``_pairs_camera``) and over every pair of exact runs
-(``_pairs_truth``).
-
-The issue's targets are printed beside the measured values, each ``met`` or ``NOT met``.
+For each configuration (robots, camera size, arena) it starts the system as
+``aes-swarm launch --tracking camera`` does, waits until every robot moves and prints one
+``RESULT`` line: tracked frames per second, detection rate, position and heading error,
+latency from exposure to ``/swarm/poses`` (and its camera and tracker parts), RTF, CPU and
+``machine_ref_us``; with ``--closed-loop`` (the default unless ``--quick``) also ψ̄ of
+interleaved tracked and exact launches. The targets are printed beside the values. What
+each figure means and how it is measured: docs/real_robots.md#how-bench_trackingpy-measures.
 
 Usage::
 
@@ -79,8 +16,8 @@ Usage::
     python bench/bench_tracking.py --robots 9 --camera-size 640x480 --arena 1.2x0.9 \\
         --seconds 5 --quick
 
-Writes ``bench_tracking.txt`` (what it printed) and ``bench_tracking.csv`` (the RESULT
-rows) to ``--out`` (default ``out/bench_tracking``). Run it in a ROS domain of its own.
+Writes ``bench_tracking.txt`` and ``bench_tracking.csv`` to ``--out`` (default
+``out/bench_tracking``). Run it in a ROS domain of its own.
 """
 
 from __future__ import annotations
