@@ -1,4 +1,5 @@
-"""Every ``aes-swarm …`` and ``python bench/….py …`` command in README.md and docs/ parses.
+"""Every ``aes-swarm …`` and ``python bench/….py …`` command in README.md and docs/ parses,
+and every ROS parameter a command sets (``-p name:=…``, ``ros2 param set``) exists.
 
 Commands are taken from fenced blocks and from inline code spans. Each ``aes-swarm``
 command is given to the real parser (nothing runs); each benchmark command to its
@@ -344,3 +345,69 @@ def test_a_bad_benchmark_flag_is_caught(tmp_path: Path) -> None:
     results = run_bench_parsers([(c.program, _bench_argv(c)) for c in (bad, good)])
     assert "--no-such-flag" in (check_bench(bad, results[0]) or "")
     assert check_bench(good, results[1]) is None
+
+
+def ros_parameters() -> dict[str, set[str]]:
+    """Each node script's and node's parameters, from the generated docs/interface.md
+    (itself checked against the nodes by test_reference_docs.py)."""
+    text = (ROOT / "docs" / "interface.md").read_text()
+    out: dict[str, set[str]] = {}
+    for script, label, body in re.findall(
+        r"^### (\S+)\n\nNode `([^`]+)`\.\n(.*?)(?=^##|\Z)", text, re.M | re.S
+    ):
+        names = set(re.findall(r"^\| `(\w+)` \|", body, re.M)) | {"use_sim_time"}
+        out[script] = out[label.replace("<i>", "0")] = names
+    return out
+
+
+def parameter_uses(path: Path) -> list[tuple[int, str, str]]:
+    """``(line, node or script, parameter)`` of every ``aes-… --ros-args -p name:=value``
+    and ``ros2 param set /node name …`` in the code of ``path``."""
+    text = path.read_text()
+    found = []
+    for number, line in [*fenced_lines(text), *inline_spans(text)]:
+        words = _words(line)
+        for i, word in enumerate(words):
+            if word.startswith("aes-") and word != "aes-swarm" and "--ros-args" in words[i:]:
+                found += [
+                    (number, word, w.split(":=")[0])
+                    for p, w in itertools.pairwise(words[i:])
+                    if p == "-p" and ":=" in w
+                ]
+            if words[i : i + 3] == ["ros2", "param", "set"] and len(words) > i + 4:
+                if not words[i + 3].startswith("/"):
+                    continue
+                node = re.sub(r"/mona_\d+/", "/mona_0/", words[i + 3])
+                found.append((number, node, words[i + 4]))
+    return found
+
+
+USES = [
+    (path, *use) for path in DOCS if path.name != "interface.md" for use in parameter_uses(path)
+]
+
+
+@pytest.mark.parametrize(
+    ("path", "line", "node", "name"), USES, ids=[f"{p.name}:{n}:{x}" for p, n, _, x in USES]
+)
+def test_documented_ros_parameter_exists(path: Path, line: int, node: str, name: str) -> None:
+    known = ros_parameters()
+    where = f"{path.relative_to(ROOT)}:{line}"
+    assert node in known, f"{where}: no node or node script {node!r} in docs/interface.md"
+    assert name in known[node], f"{where}: {node} has no parameter {name!r}"
+
+
+def test_a_wrong_ros_parameter_is_caught(tmp_path: Path) -> None:
+    doc = tmp_path / "x.md"
+    doc.write_text(
+        "```\naes-supervisor --ros-args -p omega:=0.5 -p rotation_rate:=0.5\n```\n"
+        "and `ros2 param set /mona_7/aes_robot direction 1.0`\n"
+    )
+    known = ros_parameters()
+    uses = parameter_uses(doc)
+    assert uses == [
+        (2, "aes-supervisor", "omega"),
+        (2, "aes-supervisor", "rotation_rate"),
+        (4, "/mona_0/aes_robot", "direction"),
+    ]
+    assert [name in known[node] for _, node, name in uses] == [False, True, False]
