@@ -117,35 +117,11 @@ def minimize(
     Notes
     -----
     The algorithm follows docs/design.md#tcacs step by step (the authors' reference
-    implementation): two seeding iterations of uniform points kept at least
-    s₀ = (0.7·Π(b−a)/n_ants)^(1/n) apart (including from the buffer's
-    not-yet-overwritten slots, i.e. from the origin in iteration 1); then
-    Gaussian sampling x = x_best + Rᵀ(σ ⊙ z) inside the box and outside the
-    tabu balls of radius r_tabu; the stable-sorted pool (ants, tabu,
-    promising) split into the P best (promising) and, among the rest within
-    3σ_d of x_best on every original axis d, the T worst (tabu); a frame R
-    built from the centred promising points with probability ∝ ‖c‖^(2m) and
-    Gram–Schmidt deflation; σ_d² = Σ_k W_k (z_dk − z*_d)².
-
-    Deliberate deviations, each only where the reference is undefined or can hang:
-
-    * Seeding retries are capped at ``MAX_SEED_RETRIES`` (then the last draw is
-      accepted); the reference has no cap and can hang on a box too small for
-      n_ants points s₀ apart.
-    * The box redraw is capped at ``MAX_BOX_RETRIES``, after which the draw is
-      clipped into the box; the reference loops forever if σ is huge and the
-      best point sits in a corner.
-    * Centred promising points of (numerically) zero length are never picked as
-      an axis (their direction is undefined; with m = 0 the reference could pick
-      them and produce NaN). If all are zero (every promising point identical)
-      the remaining axes are the standard basis vectors deflated in turn.
-    * Costs are compared as given, except that NaN counts as +inf; in the
-      roulette weights a non-finite cost is replaced by the largest finite cost
-      of the list (so it gets cost weight 0 instead of making every weight NaN).
-    * Kept quirk (not a deviation): the 3σ filter compares the rotated-frame σ
-      with original coordinates, as the reference does.
-    * An iteration's ants are all drawn before any of them is evaluated (one
-      batch), so x_best is fixed during an iteration's sampling.
+    implementation): two seeding iterations of uniform points s₀ apart, then Gaussian
+    sampling around x_best in a frame fitted to the promising points, outside the tabu
+    balls. It deviates only where the reference is undefined or can hang (capped
+    retries, zero-length axes, NaN costs; docs/design.md#tcacs-deviations), and draws
+    all of an iteration's ants before evaluating any (one batch).
 
     References
     ----------
