@@ -43,7 +43,7 @@ DESCRIPTIONS: dict[str, str] = {
     "(1/N,-10) (and k free down to 0), restarted with independent seeds, then every gain "
     "set re-simulated on held-out seeds. Writes effect_of_optimisation.png, "
     "convergence.png, j_slices.png, table.csv, runs.csv, study.json and study.md.",
-    "sweep": "Simulate every point of a parameter grid (or of a Latin hypercube) with --mc "
+    "sweep": "Simulate every point of a parameter grid (or of a Latin hypercube) with --runs "
     "Monte-Carlo runs each, with common random numbers, batched into the numba simulator; "
     "on the local cores, local Dask workers or a Dask cluster. Writes runs.csv (one row per "
     "point and run), points.csv, sweep_metrics.png and sweep.json; resumable.",
