@@ -82,7 +82,7 @@ class TrajectoryWriter:
         self.appended = 0
         self.committed = 0
         # a small chunk cache: appending needs only the last chunks, and HDF5's default
-        # held ~20 MB more after an hour's worth of 50-robot samples (bench_soak)
+        # cache grows with the file (docs/reliability.md#runs-of-hours)
         self._file: h5py.File | None = h5py.File(
             self.path, "w", libver="latest", rdcc_nbytes=WRITE_CACHE_BYTES
         )

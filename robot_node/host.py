@@ -118,8 +118,8 @@ class RobotHostNode(Node):
             Parameter("num_robots", Parameter.Type.INTEGER, self.get_parameter("num_robots").value),
             Parameter("neighbor_source", Parameter.Type.STRING, source),
             # ~type_description is a service per node that no tool of this system
-            # needs; creating it is over half the cost of a robot node (200 robots:
-            # 5.2 s -> 2.9 s), and the cost per node grows with the process's node count.
+            # needs; creating it is over half the cost of a robot node, and the cost per
+            # node grows with the process's node count.
             Parameter("start_type_description_service", Parameter.Type.BOOL, False),
             # Sim time comes from this node (_share_clock): made with it, every robot
             # would subscribe to /clock only to drop the subscription again.
@@ -191,7 +191,7 @@ class RobotHostNode(Node):
 
     def destroy_node(self) -> None:
         # Every robot's counts first: rmw destroys a node's endpoints at a cost that
-        # grows with the nodes of the process (80 ms a robot at 300 robots), so a
+        # grows with the nodes of the process (docs/performance.md#starting-1000-robots), so a
         # large host is SIGKILLed at the launch's stop timeout before its last robots
         # are destroyed, and their counts must not go with them.
         for robot in self.robots:

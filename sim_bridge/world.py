@@ -125,9 +125,8 @@ class World:
             path = Path(tmp) / "mona.urdf"
             path.write_text(urdf(g))
             flags = pb.URDF_USE_IMPLICIT_CYLINDER | pb.URDF_ENABLE_CACHED_GRAPHICS_SHAPES
-            # Each body at its start pose right away: loaded all at the origin, every
-            # later change to a body made the broadphase test it against all the
-            # others piled up there (1000 robots: 103 s to build the world).
+            # Each body at its start pose right away: bodies piled up at the origin make
+            # pybullet's broadphase test every later change against all the others.
             self.bodies = [
                 pb.loadURDF(
                     str(path),

@@ -54,13 +54,9 @@ from aes_ros.ros.programs import LaunchError, executable
 
 #: What ``--discovery`` may ask for.
 DISCOVERY_MODES = ("auto", "simple", "server")
-#: ``auto`` uses a discovery server from this many robots. Measured on two cores
-#: (bench/bench_ros.py --discovery simple,server, docs/performance.md "Through a discovery
-#: server"), at 20 Hz in one robot host, which under a server splits its robots over DDS
-#: participants (robot_node.host.ROBOTS_PER_PARTICIPANT): every robot moved after
-#: 3.7-4.1 s through a server and 3.3-3.8 s without at 200 robots, 4.4-4.8 s against
-#: 6.4-8.5 s at 400, 9.6-10.7 s against 20-27 s at 1000, all answering 20 Hz. Below it
-#: simple discovery keeps ``ros2`` working without any setup.
+#: ``auto`` uses a discovery server from this many robots: from here a server starts the
+#: swarm faster, below it it gains nothing and simple discovery keeps ``ros2`` working
+#: without any setup (docs/performance.md#through-a-discovery-server).
 DISCOVERY_SERVER_FROM = 400
 #: The variables that make a participant a client (super client) of a discovery server.
 SERVER_VARIABLE = "ROS_DISCOVERY_SERVER"
