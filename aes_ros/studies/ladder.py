@@ -92,7 +92,7 @@ RUNGS = (
                                          "--real-time-factor", "0")),
     Rung("dynamic-rt", "dynamic, real time", ("--mode", "dynamic")),
     Rung("camera", "dynamic + camera + tracker", ("--mode", "dynamic", "--tracking", "camera",
-                                                  "--camera", CAMERA)),
+                                                  "--camera-size", CAMERA)),
 )  # fmt: skip
 
 

@@ -65,7 +65,7 @@ class Sweep:
 
     def __post_init__(self) -> None:
         if self.mc < 1:
-            raise SweepSpecError(f"--mc {self.mc}: need at least 1 run per point")
+            raise SweepSpecError(f"--runs {self.mc}: need at least 1 run per point")
         if not 0.0 <= self.transient < self.base.duration:
             raise SweepSpecError(
                 f"--transient {self.transient:g}: need 0 <= transient < duration "
