@@ -28,7 +28,8 @@ CMD_VEL = "cmd_vel"
 ODOM = "odom"
 AES_FORCE = "aes_force"
 #: A real Mona's driver (``aes-mona-driver``) in the robot's namespace: wheel odometry
-#: (nav_msgs/Odometry), IR ranges ``ir/<k>`` (sensor_msgs/Range), battery
+#: (nav_msgs/Odometry), IR ranges ``ir_<k>`` (sensor_msgs/Range; a name token cannot
+#: start with a digit, so not ``ir/<k>``), battery
 #: (sensor_msgs/BatteryState).
 WHEEL_ODOM = "wheel_odom"
 IR = "ir"
