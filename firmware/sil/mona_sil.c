@@ -55,6 +55,10 @@
 #define BATTERY_CHANNEL 6
 #define BATTERY_DIVIDER 2 /* the firmware's assumption, firmware/mona/sensors.h */
 static const int ir_channels[5] = {1, 0, 2, 7, 3};
+/* How far simulated time may run ahead of the wall clock before the program waits: one
+ * wait per few ms of simulated time instead of one per 1 ms tick of the firmware. Input
+ * still wakes the wait at once, so it adds no latency. */
+#define SLACK_S 0.004
 /* Instructions run between two looks at the pty while the MCU stays awake. */
 #define AWAKE_SERVICE_EVERY 20000
 
@@ -99,6 +103,8 @@ static void quiet_logger(avr_t *a, const int level, const char *format, va_list 
 
 static void flush_out(void) {
     size_t off = 0;
+    if (!out_len)
+        return;
     while (off < out_len) {
         ssize_t n = write(pty_fd, out_buf + off, out_len - off);
         if (n <= 0) { /* nobody reads and the pty is full: the bytes are lost, as on a wire */
@@ -224,12 +230,15 @@ static void service(avr_cycle_count_t until_cycle) {
         uart_in = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), UART_IRQ_INPUT);
     report_motors();
     flush_out();
+    feed_uart(uart_in);
     double wall = now_s();
     report_stats(wall);
     double target = sim_s(until_cycle);
+    if (target - wall < SLACK_S)
+        return;
     struct pollfd fds[2] = {{pty_fd, POLLIN, 0}, {STDIN_FILENO, POLLIN, 0}};
     nfds_t nfds = stdin_open ? 2 : 1;
-    double timeout = target > wall ? target - wall : 0.0;
+    double timeout = target - wall;
     struct timespec ts = {(time_t)timeout, (long)((timeout - (double)(time_t)timeout) * 1e9)};
     int ready = ppoll(fds, nfds, &ts, NULL);
     waited_s += now_s() - wall;
