@@ -15,9 +15,9 @@ from pathlib import Path
 
 import yaml
 
-#: Serial speed of the Mona link (SPEC §9).
+#: Serial speed of the Mona link (docs/mona_protocol.md).
 DEFAULT_BAUD = 115200
-#: The robot's UDP port (SPEC §9).
+#: The robot's UDP port (docs/mona_protocol.md).
 ROBOT_UDP_PORT = 4210
 #: Baud rates a serial line can be set to here (termios).
 BAUDS = (9600, 19200, 38400, 57600, 115200, 230400, 460800, 500000, 576000, 921600, 1000000)

@@ -1,4 +1,4 @@
-"""The Mona robot without ROS: its geometry and the Mona link v1 (SPEC §9).
+"""The Mona robot without ROS: its geometry and the Mona link v1 (docs/mona_protocol.md).
 
 - :mod:`aes_ros.mona.geometry`: dimensions and motor limits, shared by the simulator's
   URDF and the driver; body twist ↔ wheel rim speeds.

@@ -1,4 +1,4 @@
-"""Frames of the Mona link v1 (SPEC §9): COBS, CRC-16/CCITT-FALSE, the streaming reader.
+"""Frames of the Mona link v1 (docs/mona_protocol.md): COBS, CRC-16, the streaming reader.
 
 A frame on the wire is the COBS encoding of its payload followed by one ``0x00``. The
 payload is ``version`` u8 · ``type`` u8 · ``seq`` u16 · body · ``crc`` u16, little-endian,

@@ -3,7 +3,7 @@
 The simulator's URDF (:mod:`sim_bridge.mona`) and the robot driver (:mod:`mona_driver`)
 both take them from :class:`MonaGeometry`. :func:`wheels_from_twist` and
 :func:`twist_from_wheels` convert a body twist to the wheel rim speeds [mm/s] of the
-Mona link (SPEC §9) and back.
+Mona link (docs/mona_protocol.md) and back.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def wheels_from_twist(
     """Wheel rim speeds (left, right) [mm/s] for forward speed ``v`` [m/s] and turn rate
     ``omega`` [rad/s, CCW].
 
-    left = v − ω·s/2, right = v + ω·s/2 (SPEC §9, s = wheel separation), limited as in
+    left = v − ω·s/2, right = v + ω·s/2 (docs/mona_protocol.md, s = wheel separation), limited as in
     the simulator (:meth:`MonaGeometry.wheel_speeds`: both scaled down together, so the
     curvature is kept), rounded to mm/s and clamped to ± ``max_rim_speed_mm_s``.
     Non-finite input is the caller's to refuse (it gives a ValueError here).

@@ -1,4 +1,4 @@
-"""The messages of the Mona link v1 (SPEC §9) and the counting of lost frames.
+"""The messages of the Mona link v1 (docs/mona_protocol.md) and the counting of lost frames.
 
 Each message type is a frozen dataclass with its ``TYPE`` code, its body's ``BODY``
 struct (little-endian), :meth:`~Message.encode` (the frame on the wire, given a

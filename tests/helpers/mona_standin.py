@@ -35,7 +35,7 @@ from aes_ros.mona.messages import (
     Wheels,
 )
 
-#: TELEMETRY rate [Hz] and HELLO period [s] of the firmware (SPEC §9).
+#: TELEMETRY rate [Hz] and HELLO period [s] of the firmware (docs/mona_protocol.md).
 TELEMETRY_HZ = 20.0
 HELLO_PERIOD = 1.0
 #: IR readings and battery [mV] the stand-in reports.

@@ -4,6 +4,8 @@ reader under arbitrary bytes, lost-frame counting, twist ↔ wheel speeds, senso
 from __future__ import annotations
 
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -276,3 +278,16 @@ def test_integrate_pose_drives_arcs() -> None:
     assert integrate_pose(0, 0, math.pi / 2, 0.1, 0.0, 2.0) == pytest.approx(
         (0.0, 0.2, math.pi / 2)
     )
+
+
+def test_the_examples_in_the_docs_are_the_bytes_on_the_wire() -> None:
+    doc = (Path(__file__).parents[2] / "docs" / "mona_protocol.md").read_text()
+    rows = re.findall(
+        r"^\| `(\w+\(.*?\))` \| (\d+) \| `([0-9a-f ]+)` \| `([0-9a-f ]+)` \|$", doc, re.M
+    )
+    assert len(rows) == 6
+    kinds = {k.__name__: k for k in (Wheels, Stop, Ping, Hello, Telemetry, Pong)}
+    for text, seq, payload, wire in rows:
+        msg = eval(text, {"__builtins__": {}}, kinds)  # a constructor call of the table
+        assert msg.encode(int(seq)).hex(" ") == wire, text
+        assert cobs_decode(bytes.fromhex(wire)[:-1]).hex(" ") == payload, text
