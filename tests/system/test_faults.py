@@ -242,7 +242,7 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     partial = load_trajectory(out)  # trajectory.h5 as the killed launcher left it
     assert len(partial.times) >= len(rows) and partial.positions.shape[2] == N
     report = subprocess.run(
-        [str(Path(sys.executable).parent / "aes-swarm"), "report", str(out)],
+        [str(Path(sys.executable).parent / "aes-swarm"), "report", "--out", str(out)],
         capture_output=True, text=True, timeout=120,
     )  # fmt: skip
     assert report.returncode == 0, report.stderr

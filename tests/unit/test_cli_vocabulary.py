@@ -191,6 +191,17 @@ def test_explore_writes_under_out_unless_told(
     assert "out/" in (REPO / ".gitignore").read_text().split()
 
 
+def test_report_takes_out_and_still_the_old_positional(tmp_path: Path, capsys) -> None:
+    assert main(["report", "--out", str(tmp_path)]) == 2
+    new = capsys.readouterr().err
+    assert new.startswith("aes-swarm report: error: --out: ") and "deprecated" not in new
+    assert main(["report", str(tmp_path)]) == 2
+    old = capsys.readouterr().err
+    assert old == "aes-swarm report: DIR is deprecated; use --out DIR\n" + new
+    assert main(["report"]) == 2
+    assert "--out DIR is required" in capsys.readouterr().err
+
+
 def test_params_ros_maps_the_supervisors_names(capsys) -> None:
     assert main(["params", "--ros"]) == 0
     table = capsys.readouterr().out
