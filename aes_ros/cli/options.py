@@ -69,7 +69,7 @@ def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
     return sc.with_overrides(options, "--" + "/--".join(options)) if options else sc
 
 
-#: Monte-Carlo runs per candidate (the paper's N_MC, SPEC §3.1).
+#: Monte-Carlo runs per candidate (the paper's N_MC, docs/design.md#cost).
 DEFAULT_MC = 10
 
 #: The one seed rule of every command with ``--seed`` and ``--runs``.
