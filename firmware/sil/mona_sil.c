@@ -294,6 +294,17 @@ static long parse_long(const char *text, const char *field, long lo, long hi) {
     return v;
 }
 
+/* ELF magic and e_machine EM_AVR (83): libsimavr would load anything and crash. */
+static int is_avr_elf(const char *path) {
+    unsigned char head[20];
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return 0;
+    size_t n = fread(head, 1, sizeof head, f);
+    fclose(f);
+    return n == sizeof head && memcmp(head, "\177ELF", 4) == 0 && head[18] == 83 && head[19] == 0;
+}
+
 int main(int argc, char **argv) {
     long robot_id = 0, battery_mv = 3900;
     static const struct option options[] = {
@@ -334,6 +345,11 @@ int main(int argc, char **argv) {
         return 2;
     }
 
+    if (!is_avr_elf(path)) {
+        fprintf(stderr, "mona-sil: FIRMWARE.elf: %s is no AVR ELF file (make -C firmware "
+                        "builds firmware/build/mona.elf)\n", path);
+        return 2;
+    }
     avr_global_logger_set(quiet_logger);
     elf_firmware_t firmware;
     memset(&firmware, 0, sizeof firmware);

@@ -31,6 +31,7 @@ import pytest
 from aes_ros.mona.framing import CRC, FrameReader, ProtocolError, cobs_encode, crc16
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.messages import (
+    BATTERY_LOW,
     STOPPED_BY_STOP,
     STOPPED_BY_TIMEOUT,
     Hello,
@@ -85,9 +86,8 @@ class Mcu:
     def __init__(self, robot_id: int = 0) -> None:
         self.proc = subprocess.Popen(
             [str(SIL), "--robot-id", str(robot_id), "--stats", "0", str(ELF)],
-            stdin=subprocess.DEVNULL,
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
             text=True,
         )
         assert self.proc.stdout is not None
@@ -154,6 +154,10 @@ class Mcu:
         except subprocess.TimeoutExpired:
             self.proc.kill()
             self.proc.wait()
+        self._thread.join(timeout=5)
+        for pipe in (self.proc.stdin, self.proc.stdout):
+            if pipe is not None:
+                pipe.close()
 
 
 @pytest.fixture
@@ -187,7 +191,16 @@ def test_hello_every_second_until_a_frame_then_telemetry_at_20_hz(mcu: Mcu) -> N
         assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))
     t = telemetry[-1]
     assert t.ir == (1023,) * 5  # the original Mona's IR read 1023 when nothing is seen
-    assert abs(t.battery_mv - 3900) <= 20 and not t.flags & 0x04  # mona-sil's default battery
+    assert abs(t.battery_mv - 3900) <= 20 and not t.flags & BATTERY_LOW  # mona-sil's default
+
+
+def test_ir_and_battery_inputs_reach_telemetry(mcu: Mcu) -> None:
+    assert mcu.proc.stdin is not None
+    mcu.proc.stdin.write("ir 100 200 300 400 500\nbattery 3300\n")
+    mcu.proc.stdin.flush()
+    t = mcu.wait_for(Telemetry, ir=(100, 200, 300, 400, 500))
+    assert isinstance(t, Telemetry)
+    assert abs(t.battery_mv - 3300) <= 20 and t.flags & BATTERY_LOW
 
 
 @pytest.mark.parametrize(
