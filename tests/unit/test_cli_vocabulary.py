@@ -19,8 +19,13 @@ from aes_ros.cli.options import SEED_RULE
 
 REPO = Path(__file__).resolve().parents[2]
 BENCH = REPO / "bench"
-#: Scripts with a command line of their own (naive_swarm.py is started by a benchmark).
-SCRIPTS = sorted(p for p in BENCH.glob("*.py") if p.name != "naive_swarm.py")
+#: Scripts with a command line of their own (naive_swarm.py is started by a benchmark;
+#: modules without a parser are their helpers).
+SCRIPTS = sorted(
+    p
+    for p in BENCH.glob("*.py")
+    if p.name != "naive_swarm.py" and "argparse.ArgumentParser(" in p.read_text()
+)
 #: Old spellings of an idea that has one name now.
 OLD = {"--mc", "--eval-runs", "--repeat", "--repeats"}
 
