@@ -1,18 +1,13 @@
 """Benchmark of the real ROS 2 system: control rate, real-time factor, latency, CPU, memory.
 
-For every configuration (robot count, control rate, neighbour source, layout)
-it starts the system exactly as ``aes-swarm launch`` does (bridge in kinematic
-mode, supervisor, robot hosts; combined setup), waits until every robot moves
-(``start_s``: wall time from launching the first process), lets it run for a
-warm-up, then measures over a steady window of wall time:
-
-- ``rate_min_hz`` / ``rate_median_hz``: ``cmd_vel`` messages per robot per wall
-  second, counted where they arrive, at the bridge (``/sim/stats``);
-- ``rtf``: sim seconds per wall second of the bridge;
-- ``p50_ms`` / ``p99_ms``: latency from the bridge publishing a state (poses and
-  odometry, stamped with its sim time) to each ``cmd_vel`` arriving at the
-  bridge, counted against the newest state published before it;
-- CPU of each process [% of one core] and total memory (PSS) [MB].
+For every configuration (robot count, control rate, neighbour source, layout, discovery)
+it starts the system as ``aes-swarm launch`` does, waits until every robot moves and
+measures a steady window: ``cmd_vel`` rate per robot at the bridge, RTF, latency from a
+state to its ``cmd_vel``, CPU and memory of every process, and the CPU per robot-step
+beside the straightforward design (``bench/naive_swarm.py``) and the machine's speed
+(``machine_ref_us``). Its last line is ``RESULT …`` for 100 robots, 50 Hz, poses; before
+it, the goals its rows can judge, each met or not with what bounds it. What each figure
+means: docs/performance.md.
 
 Usage::
 
@@ -23,38 +18,7 @@ Usage::
         --no-baseline                               # discovery modes side by side (~15 min)
     python bench/bench_ros.py --physics             # only the bridge physics line
 
-Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default
-``out/bench_ros``), prints a table and, as its last line,
-``RESULT robots=… hz=… source=… rate_hz=… rate_min_hz=… rtf=… p99_ms=… start_s=…
-cpu_us_per_robot_step=… baseline_robots=… baseline_hz=… baseline_cpu_us_per_robot_step=…
-efficiency_ratio=… efficiency_ratio_odom=… baseline_rate_hz=…`` for 100 robots, 50 Hz, poses
-(or the first configuration measured if that one is not in the grid). Before it, the goals of issue
-#13 that the run's rows can judge (efficiency ratios, odometry at 100 robots and 50 Hz,
-the start and rate of 1000 robots), each ``met`` or ``NOT met; bound: <the benchmark or
-profile that shows what bounds it>``.
-
-Every figure is printed beside the machine's speed in the same run:
-``machine_ref_us`` is µs of one agent-step of ``bench/bench_sim.py``'s per-agent
-Python loop (100 robots, combined; measured before and after the grid, the
-mean printed), and ``cpu_per_ref`` is ``cpu_us_per_robot_step`` in those units
-(a slower machine has both larger; their ratio moves much less).
-
-``cpu_us_per_robot_step`` is the machine-independent figure: µs of CPU of the whole
-system (bridge, supervisor, robot processes) per robot per control step answered. The
-same run measures it for the straightforward design other ROS swarm packages use
-(``bench/naive_swarm.py``: one rclpy node per robot on a SingleThreadedExecutor,
-neighbours' Odometry as message objects, Twist objects out, 10 robots per process)
-with the same bridge and supervisor; ``efficiency_ratio`` is its figure over ours
-(poses; ``_odom``: ours with odometry too), both at ``baseline_robots`` and ``baseline_hz``:
-the RESULT line's robots and rate, or 100 robots at 50 Hz when the RESULT line has more than
-100 robots (``--robots 1000`` would start 100 naive processes, which takes longer than the
-measurement; the run says so and measures this design at 100 robots too, if the grid lacks
-it). ``--no-baseline`` skips it; a baseline that fails (it gets 120 s to start and refuses
-to run beside another swarm in the ROS domain, as a launch does) is printed as FAILED and
-leaves the RESULT line without its ratios, keeping the rows measured.
-
-The ``physics`` line runs 100 Mona robots in ``dynamic`` mode at 240 Hz
-physics with no ROS at all and reports the real-time factor of pybullet alone.
+Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default ``out/bench_ros``).
 """
 
 from __future__ import annotations
