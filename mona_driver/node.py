@@ -69,6 +69,7 @@ class MonaDriverNode(Node):
         self.geometry = MonaGeometry()
         self.warn = ThrottledWarnings(self.get_logger())
         self.enabled = True
+        self._strangers_warned = 0
         self._declare_parameters()
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self._odom: dict[int, tuple[float, float, float, float | None]] = {}
@@ -204,11 +205,12 @@ class MonaDriverNode(Node):
                 link = self._by_address[address]
                 # one frame per datagram: a missing delimiter must not join it to the next
                 self._handle(link, data if data.endswith(b"\x00") else data + b"\x00", now)
-            if self.hub.strangers:
-                self.warn(
-                    f"dropped UDP datagrams from addresses not in the links: {self.hub.strangers} "
-                    f"so far, the last from {self.hub.last_stranger}"
-                )
+            # warned at most every 5 s, and only while new ones come
+            if self.hub.strangers > self._strangers_warned and self.warn(
+                f"dropped UDP datagrams from addresses not in the links: {self.hub.strangers} "
+                f"so far, the last from {self.hub.last_stranger}"
+            ):
+                self._strangers_warned = self.hub.strangers
         for link in self.links:
             if isinstance(link.transport, SerialPort):
                 self._poll_serial(link, now)
