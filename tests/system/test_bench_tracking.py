@@ -61,7 +61,8 @@ def test_stamp_offset_is_the_fastest_clock_nearby(bench) -> None:
     sim = np.arange(0.0, 5.0, 0.05)
     delay = np.where(np.arange(len(sim)) % 3 == 0, 0.001, 0.02)  # a few come through fast
     clock = np.column_stack([100.0 + sim + delay, sim])
-    offsets = bench.stamp_offsets(clock, np.array([1.0, 2.5, 4.9, 20.0]))
+    with bench_module("tracking_probe") as probe:
+        offsets = probe.stamp_offsets(clock, np.array([1.0, 2.5, 4.9, 20.0]))
     assert offsets[:3] == pytest.approx([100.001] * 3)
     assert np.isnan(offsets[3])  # no /clock within the window
 
