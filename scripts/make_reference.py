@@ -16,14 +16,18 @@ import argparse
 import ast
 import importlib
 import os
+import re
 import sys
+import tempfile
 import tomllib
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from aes_ros.arena_layout import corner_layout, save_layout  # noqa: E402
 from aes_ros.cli.reference import (  # noqa: E402
     GENERATED,
     NODES,
@@ -32,6 +36,7 @@ from aes_ros.cli.reference import (  # noqa: E402
     console_scripts,
     endpoints_markdown,
 )
+from aes_ros.ros import interface  # noqa: E402
 from aes_ros.ros.parameter_table import NODE_PARAMETERS, node_label  # noqa: E402
 
 CLI_DOC = ROOT / "docs" / "cli.md"
@@ -39,12 +44,62 @@ INTERFACE_DOC = ROOT / "docs" / "interface.md"
 TESTS_DOC = ROOT / "tests" / "README.md"
 #: Declared by rclpy for every node.
 RCLPY_OWN = {"use_sim_time", "start_type_description_service"}
+#: Topics rclpy creates for every node.
+RCLPY_TOPICS = {"/rosout", "/parameter_events"}
+#: The services rclpy gives every node, ``/<node>/<name>``.
+PARAMETER_SERVICES = {"describe_parameters", "get_parameter_types", "get_parameters",
+                      "get_type_description", "list_parameters", "set_parameters",
+                      "set_parameters_atomically"}  # fmt: skip
 
 
-def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str, str, Any, Any]]]:
-    """The node name and ``(name, type, default, descriptor)`` of every parameter the
-    node class ``target`` declares, in order (the default as the code gives it, with
-    the ``combined`` scenario; the type as the node holds it)."""
+@dataclass
+class BuiltNode:
+    """What one node declared and created: parameters ``(name, type, default cell,
+    descriptor)`` in order, and its topics and services by kind."""
+
+    name: str
+    parameters: list[tuple[str, str, str, Any]]
+    endpoints: dict[str, list[str]]
+
+
+def _setup(script: str, tmp: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Parameter overrides and constructor arguments that let the node of ``script``
+    start here. The recorded defaults stay the code's."""
+    if script == "aes-robot-node":
+        return {}, {"namespace": "/mona_0"}  # as the launch starts it
+    if script == "aes-robot-host":
+        return {"num_robots": 2}, {}  # two robots keep it quick
+    if script == "aes-tracker":  # it needs a calibration or a layout
+        layout = save_layout(corner_layout((-1.0, 1.0, -0.75, 0.75)), tmp / "arena.yaml")
+        return {"layout": str(layout)}, {}
+    if script == "aes-mona-driver":
+        return {}, {"links": []}
+    return {}, {}
+
+
+def _endpoints(node: Any) -> dict[str, list[str]]:
+    """The node's topics and services without rclpy's own, ``/mona_<i>`` for any robot."""
+
+    def names(items: Any, attr: str) -> list[str]:
+        out = {re.sub(r"^/?mona_\d+/", "/mona_<i>/", getattr(x, attr)) for x in items}
+        return sorted(out - RCLPY_TOPICS)
+
+    def served(items: Any) -> list[str]:
+        own = names(items, "srv_name")
+        return [n for n in own if n.rsplit("/", 1)[-1] not in PARAMETER_SERVICES]
+
+    return {
+        "publishes": names(node.publishers, "topic_name"),
+        "subscribes to": names(node.subscriptions, "topic_name"),
+        "serves": served(node.services),
+        "calls": names(node.clients, "srv_name"),
+    }
+
+
+def build_node(script: str, target: str, context: Any, tmp: Path) -> BuiltNode:
+    """Build the node class ``target`` (``module:Class``) and record what it declares
+    (defaults as the code gives them, with the ``combined`` scenario; types as the
+    node holds them) and creates."""
     from rclpy.parameter import Parameter
 
     module, name = target.split(":")
@@ -59,12 +114,9 @@ def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str,
                 seen.append((p[0], p[1] if len(p) > 1 else None, p[2] if len(p) > 2 else None))
             return super().declare_parameters(namespace, parameters, ignore_override)
 
-    # One robot keeps a host quick; the recorded defaults are the code's, not overrides.
-    overrides = [Parameter("num_robots", value=1)] if "host" in module else []
-    try:
-        Recording(context=context, parameter_overrides=overrides)
-    except Exception:  # the tracker refuses to start without a calibration
-        pass
+    values, kwargs = _setup(script, tmp)
+    overrides = [Parameter(k, value=v) for k, v in values.items()]
+    Recording(context=context, parameter_overrides=overrides, **kwargs)
     node = made[0]
     out = []
     for pname, default, descriptor in seen:
@@ -74,13 +126,29 @@ def declared_parameters(target: str, context: Any) -> tuple[str, list[tuple[str,
             kind = node.get_parameter(pname).type_.name.lower().replace("_array", "[]")
         shown = "" if isinstance(default, Parameter.Type) or default == "" else f"`{cell(default)}`"
         out.append((pname, kind, shown, descriptor))
-    node_name = node.get_name()
+    built = BuiltNode(node.get_name(), out, _endpoints(node))
     node.destroy_node()
-    return node_name, out
+    return built
+
+
+def _check_listed(script: str, built: BuiltNode) -> None:
+    """Every topic and service the node creates is in interface.py's tables."""
+    listed = {e.name for e in (*interface.TOPICS, *interface.SERVICES)}
+    listed |= {re.sub(r"<k>$", "", n) for n in listed}
+    missing = [
+        n for names in built.endpoints.values() for n in names
+        if n not in listed and re.sub(r"\d+$", "", n) not in listed
+        and n.rsplit("/", 1)[-1] not in PARAMETER_SERVICES
+    ]  # fmt: skip
+    if missing:
+        raise SystemExit(
+            f"{script} creates {', '.join(missing)}: add them to TOPICS or SERVICES "
+            "in aes_ros/ros/interface.py"
+        )
 
 
 def parameters_markdown() -> list[str]:
-    """One table per node: parameter, type, default, description."""
+    """One section per node: its topics and services, and a table of its parameters."""
     import rclpy
     from rclpy.context import Context
 
@@ -90,44 +158,47 @@ def parameters_markdown() -> list[str]:
     context = Context()
     rclpy.init(args=["--ros-args", "--log-level", "fatal"], context=context)
     lines = [
-        "## Node parameters",
+        "## Nodes",
         "",
-        "Set at start with `--ros-args -p name:=value`, at runtime with a parameter "
-        "service unless read-only; an invalid value is refused with a reason and the old "
-        "one stays. Defaults are those of the `combined` scenario: the model parameters "
-        "(`alpha`, `beta`, `k`, …) default to the scenario's values. The column `params` "
-        "names the `aes-swarm params` / `--set` entry a parameter stands for (`aes-swarm "
-        "params --ros` prints the same mapping). Every node also has rclpy's `use_sim_time`.",
+        "What each node creates when it starts (`/mona_<i>` for every robot it knows), "
+        "and its parameters. Parameters are set at start with `--ros-args -p name:=value`, "
+        "at runtime with a parameter service unless read-only; an invalid value is refused "
+        "with a reason and the old one stays. Defaults are those of the `combined` "
+        "scenario: the model parameters (`alpha`, `beta`, `k`, …) default to the "
+        "scenario's values. The column `params` names the `aes-swarm params` / `--set` "
+        "entry a parameter stands for (`aes-swarm params --ros` prints the same mapping). "
+        "Every node also has rclpy's `use_sim_time`.",
         "",
     ]
     try:
-        scripts = console_scripts()
-        for script, target in NODES.items():
-            if script not in scripts:
-                continue
-            node_name, declared = declared_parameters(target, context)
-            table = NODE_PARAMETERS.get(node_name)
-            params_names = dict(table.rows()) if table is not None else {}
-            lines += [
-                f"### {script}",
-                "",
-                f"Node `{node_label(node_name)}`.",
-                "",
-                "| parameter | type | default | `params` | what |",
-                "|---|---|---|---|---|",
-            ]
-            for name, kind, shown, descriptor in declared:
-                if name in RCLPY_OWN:
-                    continue
-                text = descriptor.description if descriptor is not None else ""
-                ro = " (read-only)" if descriptor is not None and descriptor.read_only else ""
-                same = params_names.get(name)
-                same = f"`{same}`" if same else ""
-                lines.append(f"| `{name}` | {kind} | {shown} | {same} | {cell(text)}{ro} |")
-            lines.append("")
+        with tempfile.TemporaryDirectory() as tmp:
+            for script, target in NODES.items():
+                if script in console_scripts():
+                    lines += node_section(script, build_node(script, target, context, Path(tmp)))
     finally:
         rclpy.try_shutdown(context=context)
     return lines
+
+
+def node_section(script: str, built: BuiltNode) -> list[str]:
+    """The markdown of one node."""
+    _check_listed(script, built)
+    table = NODE_PARAMETERS.get(built.name)
+    params_names = dict(table.rows()) if table is not None else {}
+    lines = [f"### {script}", "", f"Node `{node_label(built.name)}`.", ""]
+    for verb, names in built.endpoints.items():
+        if names:
+            lines.append(f"- {verb} {', '.join(f'`{n}`' for n in names)}")
+    lines += ["", "| parameter | type | default | `params` | what |", "|---|---|---|---|---|"]
+    for name, kind, shown, descriptor in built.parameters:
+        if name in RCLPY_OWN:
+            continue
+        text = descriptor.description if descriptor is not None else ""
+        ro = " (read-only)" if descriptor is not None and descriptor.read_only else ""
+        same = params_names.get(name)
+        same = f"`{same}`" if same else ""
+        lines.append(f"| `{name}` | {kind} | {shown} | {same} | {cell(text)}{ro} |")
+    return [*lines, ""]
 
 
 def interface_markdown() -> str:
