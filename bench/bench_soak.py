@@ -1,35 +1,12 @@
 """A soak of the launched swarm: memory, files and threads of every process over a long
 run, with or without processes killed on purpose (chaos).
 
-Starts ``aes-swarm launch`` (combined setup, ``--robots`` robots at ``--rate`` Hz,
-real time, recording into rotating bag segments, the dashboard on) in a ROS domain of
-its own for ``--duration`` s of sim time. Every ``--every`` s it samples each process
-of the launch (the launcher, the bridge, the supervisor, the robot hosts, the
-recorder, the dashboard, the reaper): resident memory (RSS), open files, threads.
-With ``--chaos PERIOD`` it kills (SIGKILL) a random one of the robot hosts,
-supervisor, bridge, recorder and dashboard every PERIOD s; the launcher restarts them
-(``--on-failure respawn``).
-
-Checked at the end:
-
-- RSS growth of every process after the warm-up (``--warmup`` s after every robot
-  moved; a restarted process counts from its own warm-up): from the median of its
-  first three samples to the median of its last three [%], and the slope of a
-  least-squares line [MB/h]; the launcher's largest RSS while it stops and writes the
-  outputs must stay within the same bound of its RSS at warm-up;
-- faults injected and recovered (``recovered`` lines of the run's ``events.csv``);
-- gaps in ``metrics.csv`` (more than 2.5 control periods of sim time between rows)
-  outside the recovery windows of docs/reliability.md (from the sim time of a death to
-  that plus the process's target: robot host and supervisor 3 s, bridge 5 s);
-- messages lost (the publishers' sequence numbers in the bag segments, as the
-  recorder counts them) outside those windows (wall time of the kill to the window's
-  end; the recorder's own death excuses what it missed until its restart); segments
-  that ``--bag-keep`` deleted cannot be read, so the recorder's own total over all
-  its lives (``lost_total``, from the bag's sequences journal, else its log's last
-  line) minus what the kept segments place inside a window counts as outside;
-- processes of the domain and Fast DDS shared-memory files left 15 s after the end;
-- every bag segment left (``--bag-keep``) readable: closed, or cut by a kill of its
-  recorder and read up to its last chunk.
+Starts ``aes-swarm launch`` (combined setup, real time, rotating bag segments, the
+dashboard on) in a ROS domain of its own, samples RSS, open files and threads of each of
+its processes every ``--every`` s and, with ``--chaos PERIOD``, SIGKILLs a random one
+every PERIOD s. At the end it judges memory growth, recoveries, gaps in ``metrics.csv``,
+messages lost outside the recovery windows, processes and shared-memory files left and
+the bag segments; how each is judged: docs/reliability.md#how-bench_soak-judges-a-run.
 
 Usage::
 
@@ -37,14 +14,8 @@ Usage::
     python bench/bench_soak.py --duration 3600 --chaos 60       # ... killing a process a minute
     python bench/bench_soak.py --duration 120 --robots 50 --warmup 30   # what CI runs
 
-Prints a table per process and, as its last line, ``RESULT`` with ``rss_<process>=
-<warm>-><end>MB slope_<process>=<MB/h>``, ``launcher_finish_mb``, ``max_growth_pct``, ``faults``,
-``recovered``, ``gaps``, ``lost_outside``, ``orphans``, ``shm_left``, ``segments``,
-``segments_readable`` and ``ok=<yes|no>`` (yes: growth within ``--max-growth`` %,
-slopes within ``--max-slope`` MB/h, every fault recovered, 0 gaps, 0 lost outside
-recovery, 0 orphans, 0 shared-memory files, every segment readable). Writes
-``soak_samples.csv``, ``soak.json`` and ``soak.png`` (RSS of each process over time)
-to ``--out``.
+Prints a table per process and a last ``RESULT`` line ending ``ok=<yes|no>``; writes
+``soak_samples.csv``, ``soak.json`` and ``soak.png`` to ``--out``.
 """
 
 from __future__ import annotations
