@@ -16,11 +16,8 @@ Convention
   reference markers. The price is a small Hamming distance between codes
   (OpenCV corrects no bit of it at the default ``errorCorrectionRate``, 36h11
   corrects 5), so the tracker must treat an id seen twice as suspect: it drops
-  both (:mod:`tracker_node.detection`). Measured with
-  ``bench/bench_camera_render.py --dictionaries`` (100 robots over 4 × 3 m, 5
-  frames, 0.7 px blur, σ = 2 grey levels): at 1600 × 1200 4X4_250 finds 489 of
-  500 markers, 36h11 429; at 1800 × 1350 500 and 493; at 2048 × 1536 both 500,
-  with corner errors of 0.05 and 0.10 px RMS.
+  both (:mod:`tracker_node.detection`). The two dictionaries side by side:
+  docs/real_robots.md#what-a-lab-needs.
 - Ids: robot ``i`` wears id ``i``; reference markers take the ids from the top
   down (249, 248, …: :func:`reference_ids`), so robots and references never
   collide while fewer than ``250 - #references`` robots run.
@@ -33,8 +30,7 @@ Convention
   fits the edges (15 % of the side from a corner), 4.6 mm at a corner. A
   narrower one costs accuracy with any detector: a blurred thin white strip
   between the black border and the dark body never reaches full white, which
-  moves every measured edge inwards (a square sticker reaching 6 mm beyond the
-  marker cost 0.1-0.2 px per corner at 0.7 px of blur, measured).
+  moves every measured edge inwards.
 - Orientation: the marker's x axis ("right" in the marker image) is the
   robot's heading, its y axis ("up") the robot's left, so a level overhead
   camera (image right = arena +x) sees the marker image as printed.
