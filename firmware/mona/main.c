@@ -30,8 +30,11 @@
 #define FLAG_STOPPED_BY_STOP 0x02
 #define FLAG_BATTERY_LOW 0x04
 
-/* The robot id lives in EEPROM byte 0 (0xFF, erased: robot 0). */
+/* The robot id lives in EEPROM byte 0; erased (0xFF), it is ROBOT_ID of the build. */
 #define EEPROM_ROBOT_ID ((const uint8_t *)0)
+#ifndef ROBOT_ID
+#define ROBOT_ID 0
+#endif
 
 static volatile uint32_t ticks_ms;
 
@@ -184,7 +187,7 @@ static void receive(uint8_t byte) {
 int main(void) {
     robot_id = eeprom_read_byte(EEPROM_ROBOT_ID);
     if (robot_id == 0xFF)
-        robot_id = 0;
+        robot_id = ROBOT_ID;
     LED_DDR |= _BV(LED_TOP_BIT);
     motors_init();
     sensors_init();
