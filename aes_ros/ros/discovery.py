@@ -1,40 +1,17 @@
 """How the processes of a swarm find each other: Fast DDS's simple discovery, or a
 discovery server (``aes-swarm launch --discovery``, ``scripts/start_swarm.sh -d``).
 
-With **simple** discovery (Fast DDS's default) every participant announces itself to
-every other and pairs every endpoint it learns of with its own: the work grows with the
-product of the processes' endpoints (docs/performance.md, "Starting 1000 robots"). With a
-**discovery server** every participant is a *client* that talks to the server only, and
-the server relays to each client the endpoints on the topics that client uses.
-
-- The server is Fast DDS's ``fast-discovery-server`` (in the ``ros_fastrtps`` wheel),
-  id 0, on one UDP port; :func:`serve` runs it (``python -m aes_ros.ros.discovery serve``):
-  the wheel's binary does not find its own libraries, and the server talks UDP only, so
-  that a killed server leaves nothing in ``/dev/shm``. Its lease is 2 s
-  (``fastdds_server_profile.xml``): a launch restarts a server that died only after
-  :data:`SERVER_RESTART_DELAY`, when its clients have forgotten it, else they would take
-  the new one for the old one and ignore it. Endpoints matched already keep talking
-  while there is no server (measured: 30 s without one); only new ones wait for it.
-- A process is pointed at it by ``ROS_DISCOVERY_SERVER=HOST:PORT`` in its environment
-  (Fast DDS 2.14 turns a participant of simple discovery into a client then).
-  ``ROS_SUPER_CLIENT=true`` makes it a *super client*: it learns of every endpoint the
-  server knows. A plain client learns of the participants and their node names (every
-  node publishes and reads ``ros_discovery_info``) but of topics and services only those
-  it has endpoints on itself: ``ros2 topic list`` and the recorder, which subscribes to
-  topics it finds, need a super client; node lists, the services one calls and the
-  topics one reads do not.
-- Fast DDS reads ``ROS_DISCOVERY_SERVER`` when a participant is made and keeps the last
-  value it found: once a process has made a client, a later participant made without
-  the variable is a client of the same server. Setting it to ``""`` goes back to simple
-  discovery (:func:`participant_variables`).
-
-``ROS_AUTOMATIC_DISCOVERY_RANGE`` does not limit a client: it talks to the servers it is
-given, wherever they are. A server a launch starts listens on 127.0.0.1 when the range is
-``LOCALHOST`` (the processes of this host only, as the range says), otherwise on one
-interface, this host's address toward its default route (:func:`host_address`), where
-robots on other hosts join with ``ROS_DISCOVERY_SERVER=<that address>:<port>``.
-:func:`serve` binds the server's UDP transport to that one address (an interface
-allowlist in its profile); only ``--listen 0.0.0.0`` opens every interface.
+With a **discovery server** every participant is a client that talks to the server only,
+and the server relays to each client the endpoints on the topics it uses. The server is
+the ``ros_fastrtps`` wheel's ``fast-discovery-server``, id 0, on one UDP port, run by
+:func:`serve` (``python -m aes_ros.ros.discovery serve``: the wheel's binary does not
+find its own libraries), bound to one address (:func:`host_address`, or 127.0.0.1 under
+``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``). A process becomes a client through
+``ROS_DISCOVERY_SERVER`` (a super client with ``ROS_SUPER_CLIENT=true``), set or cleared
+by :func:`set_environ`; Fast DDS keeps the last value it read, so ``""`` is
+needed to go back to simple discovery. A dead server is restarted only after
+:data:`SERVER_RESTART_DELAY`, once its clients have forgotten it. The whole story:
+docs/ros.md#large-swarms-the-discovery-server.
 """
 
 from __future__ import annotations
