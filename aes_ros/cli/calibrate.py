@@ -3,7 +3,7 @@
 Examples::
 
     aes-swarm calibrate --image frame.png --arena-layout arena.yaml --camera-info camera.yaml \
-        --out calibration.yaml
+        --out lab          # writes lab/calibration.yaml
 
 ``--arena-layout`` says where the reference markers lie on the floor (and the robots' marker
 height); ``--camera-info`` gives the camera's intrinsics in the ROS camera_info YAML
@@ -11,7 +11,7 @@ layout (what ``camera_calibration`` writes). The calibration maps image points t
 arena at the markers' height (:mod:`tracker_node.calibration`); its residuals are
 printed, one line per reference marker. A frame that shows too few reference markers,
 or markers on one line, is refused with what is missing, and nothing is written; so is
-an ``--out`` that exists, unless ``--overwrite``.
+a calibration already in ``--out``, unless ``--overwrite``.
 """
 
 from __future__ import annotations
@@ -24,6 +24,9 @@ from pathlib import Path
 from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.params import ParameterError
 from aes_ros.previous_run import add_overwrite_option, refuse, remove
+
+#: What ``--out DIR`` gets.
+CALIBRATION_FILE = "calibration.yaml"
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -38,8 +41,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="the camera's intrinsics (ROS camera_info YAML)",
     )  # fmt: skip
     p.add_argument(
-        "--out", type=Path, required=True,
-        help="calibration.yaml to write (an existing file is refused unless --overwrite)",
+        "--out", type=Path, required=True, metavar="DIR",
+        help=f"the directory this command writes: DIR/{CALIBRATION_FILE} (an existing one is "
+        "refused unless --overwrite)",
     )  # fmt: skip
     add_overwrite_option(p, "calibration at --out")
 
@@ -53,8 +57,16 @@ def run(args: argparse.Namespace) -> int:
 
     if args.arena_layout is None:  # not argparse's required=: the old --layout gives it too
         raise ParameterError("--arena-layout FILE is required")
-    found = [args.out] if os.path.lexists(args.out) else []
-    refuse(found, f"--out {args.out}", args.overwrite, "an earlier calibration")
+    target = args.out / CALIBRATION_FILE
+    if args.out.suffix in (".yaml", ".yml"):  # the old spelling: the file itself
+        print(
+            f"aes-swarm calibrate: --out FILE.yaml is deprecated; use --out DIR "
+            f"(writes DIR/{CALIBRATION_FILE})",
+            file=sys.stderr,
+        )
+        target = args.out
+    found = [target] if os.path.lexists(target) else []
+    refuse(found, f"--out {target}", args.overwrite, "an earlier calibration")
     try:
         layout = load_layout(args.arena_layout)
         K, dist, size = load_camera_info(args.camera_info)
@@ -71,10 +83,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"aes-swarm calibrate: error: {exc}", file=sys.stderr)
         return 2
     remove(found)  # with --overwrite (a link is replaced, not what it points to)
-    calibration.save(args.out)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    calibration.save(target)
     print(f"calibrated: {residuals}")
     for i, px, mm in zip(residuals.ids, residuals.reprojection_px, residuals.arena_mm, strict=True):
         print(f"  marker {int(i)}: reprojection {px:.3f} px, on the floor {mm:.2f} mm")
     x, y, z = calibration.camera.center
-    print(f"camera at ({x:.3f}, {y:.3f}) m, {z:.3f} m above the floor; wrote {args.out}")
+    print(f"camera at ({x:.3f}, {y:.3f}) m, {z:.3f} m above the floor; wrote {target}")
     return 0

@@ -207,6 +207,19 @@ def test_report_takes_out_and_still_the_old_positional(tmp_path: Path, capsys) -
     assert "--out DIR is required" in capsys.readouterr().err
 
 
+def test_calibrate_out_is_a_directory_and_a_file_still_works(tmp_path: Path, capsys) -> None:
+    (tmp_path / "calibration.yaml").write_text("the lab's")
+    given = ["calibrate", "--image", "f.png", "--arena-layout", "a.yaml", "--camera-info", "c"]
+    assert main([*given, "--out", str(tmp_path)]) == 2  # DIR/calibration.yaml is there
+    new = capsys.readouterr().err
+    assert f"--out {tmp_path / 'calibration.yaml'} holds an earlier calibration" in new
+    assert "deprecated" not in new
+    assert main([*given, "--out", str(tmp_path / "calibration.yaml")]) == 2
+    old = capsys.readouterr().err
+    assert old.startswith("aes-swarm calibrate: --out FILE.yaml is deprecated; use --out DIR")
+    assert old.endswith(new)
+
+
 def test_params_ros_maps_the_supervisors_names(capsys) -> None:
     assert main(["params", "--ros"]) == 0
     table = capsys.readouterr().out
