@@ -1,33 +1,14 @@
 """What bounds the start of a large swarm: creating ROS 2 nodes and their parameter services.
 
-Issue #13 asks 1000 robots moving within 15 s while ``ros2 param set /mona_<i>/aes_robot``
-works for every robot. ``ros2 param set`` of Jazzy waits until *all six* parameter
-services of the node answer (``rclpy.parameter_client.AsyncParameterClient.services_are_ready``),
-so every robot needs an rclpy node with its six services: twelve DDS endpoints besides its
-own topics. This script measures that floor with plain rclpy nodes and no aes-swarm code:
-node ``/mona_<i>/aes_robot`` with a ``cmd_vel`` and an ``aes_force`` publisher, with or
-without the parameter services (``start_parameter_services``).
-
-1. ``one process``: N such nodes in one process, seconds to create them, with and
-   without the services. Fast DDS pairs each new endpoint with every endpoint of the
-   participant (copying its proxy data), so the time grows with N² once the services are
-   there.
-2. ``1000 nodes in P processes``: wall seconds from starting P processes until the last
-   has created its share, once with the processes discovering each other (one domain, as
-   a launch does), once all in one domain as clients of a discovery server (started with
-   them, as ``aes-swarm launch --discovery server`` does; :mod:`aes_ros.ros.discovery`)
-   and once each in a domain of its own (no discovery between them: the floor any split
-   of the robots over processes could reach).
-
-3. ``1000 nodes in one process in P participants``: the robot host's case. One process
-   makes the nodes in P rclpy contexts (DDS participants, as ``aes-robot-host`` does with
-   ``robots_per_participant``) while another, like the bridge, subscribes to every
-   node's ``cmd_vel``; wall seconds from starting both until that reader has matched
-   every node's publisher, with simple discovery and through a discovery server.
-
-Fast DDS runs with its defaults, or with ``--profile launch`` with the profile every
-process of a launch gets (``aes_ros/ros/fastdds_profile.xml``: among others, a participant
-does not match its own endpoints, which removes most of the cost in one process).
+Plain rclpy nodes, no aes-swarm code: ``/mona_<i>/aes_robot`` with a ``cmd_vel`` and an
+``aes_force`` publisher, with or without the six parameter services that Jazzy's
+``ros2 param set`` waits for. Three measurements: (1) N nodes in one process, with and
+without services; (2) 1000 nodes in P processes discovering each other, through a
+discovery server, and each in a domain of its own (the floor); (3) 1000 nodes in one
+process in P participants beside a reader of their ``cmd_vel`` (the robot host and the
+bridge), until every reader matched. Fast DDS runs with its defaults or, with
+``--profile launch``, the profile every launched process gets. Figures and what they
+mean: docs/performance.md#starting-1000-robots.
 
 Usage::
 
@@ -35,9 +16,7 @@ Usage::
     python bench/bench_startup.py --profile launch    # ~5 min
     python bench/bench_startup.py --quick             # smaller counts (~1 min)
 
-Prints tables and, as its last line, ``RESULT robots=1000 … start_s_shared=…
-start_s_server=… start_s_isolated=… services_ratio_<N>=… matched_s_<mode>_p<P>=…
-machine_ref_us=…`` (ratios of the same run).
+Prints tables and a last ``RESULT`` line with ``machine_ref_us``.
 """
 
 from __future__ import annotations
