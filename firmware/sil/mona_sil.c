@@ -7,8 +7,10 @@
  * stdout, one line each, flushed:
  *   pty: /dev/pts/N                            once, when the MCU starts
  *   motors t=<s> left=<duty> right=<duty>      on every change of the motor outputs
- *   stats t=<s> wall=<s> rtf=<x> busy=<x>      every S seconds (real-time factor of the
- *                                              interval, share of it spent computing)
+ *   stats t=<s> wall=<s> rtf=<x> busy=<x>      every S seconds if --stats S > 0 (real-
+ *                                              time factor of the interval, share of it
+ *                                              spent computing)
+ *   exit t=<s> wall=<s> rtf=<x> busy=<x>       at the end, over the whole run
  * <duty> is the PWM compare value (0..255, duty = value / 255), negative when the
  * direction pin says reverse; t is simulated time since reset. The outputs are read
  * from the registers (OCR1A/OCR1B, TCCR1A's COM bits, PORTD) each time the MCU goes
@@ -76,7 +78,7 @@ static unsigned long out_dropped;
 
 static struct timespec wall_start;
 static int last_left = 0, last_right = 0;
-static double stats_period = 1.0, next_stats = 1.0;
+static double stats_period = 0.0, next_stats = 0.0;
 static double waited_s, last_stats_wall, last_stats_sim, last_stats_waited;
 static char stdin_line[256];
 static size_t stdin_len;
