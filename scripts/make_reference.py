@@ -17,6 +17,7 @@ import ast
 import importlib
 import os
 import re
+import subprocess
 import sys
 import tempfile
 import tomllib
@@ -217,13 +218,28 @@ def interface_markdown() -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
+def python_files(folder: str, pattern: str) -> list[Path]:
+    """The files of ``folder`` named like ``pattern`` that git tracks (all of them outside
+    a git clone), so that files not committed yet do not enter the tables."""
+    found = sorted((ROOT / folder).rglob(pattern))
+    try:
+        listed = subprocess.run(
+            ["git", "ls-files", "-z", "--", folder], cwd=ROOT, capture_output=True,
+            text=True, check=True,
+        ).stdout.split("\0")  # fmt: skip
+    except (OSError, subprocess.CalledProcessError):
+        return found
+    tracked = {ROOT / name for name in listed if name}
+    return [path for path in found if path in tracked]
+
+
 def project_modules() -> list[str]:
     """Every module of the packages that pyproject.toml installs, dotted."""
     find = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
     tops = sorted(p.rstrip("*") for p in find["packages"]["find"]["include"])
     out = []
     for top in tops:
-        for path in sorted((ROOT / top).rglob("*.py")):
+        for path in python_files(top, "*.py"):
             parts = path.relative_to(ROOT).with_suffix("").parts
             out.append(".".join(parts[:-1] if parts[-1] == "__init__" else parts))
     return out
@@ -259,7 +275,7 @@ def tests_markdown() -> str:
     modules = project_modules()
     scripts = console_scripts()
     tests: dict[str, list[str]] = {m: [] for m in modules}
-    for path in sorted((ROOT / "tests").rglob("test_*.py")):
+    for path in python_files("tests", "test_*.py"):
         for module in tested_modules(path, set(modules), scripts):
             tests[module].append(f"[{path.name}]({path.relative_to(ROOT / 'tests')})")
     lines = [
