@@ -20,11 +20,18 @@ PROG = "aes-mona-driver"
 
 def parse_args(argv: Sequence[str]) -> argparse.Namespace:
     """The driver's own options (those before ``--ros-args``)."""
+    epilog = "ROS parameters: aes-mona-driver ... --ros-args -p NAME:=VALUE."
+    if "-h" in argv or "--help" in argv:  # only then: the node's module pulls in rclpy
+        import inspect
+
+        from mona_driver.node import MonaDriverNode
+
+        epilog += "\n\n" + (inspect.getdoc(MonaDriverNode) or "")
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Drive real Monas over the Mona link v1 (docs/mona_protocol.md).",
-        epilog="ROS parameters: aes-mona-driver --ros-args -p NAME:=VALUE (see the node's "
-        "class docstring or docs/mona_protocol.md).",
+        epilog=epilog,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     add = parser.add_argument
     add("--link", action="append", default=[], help=f"one robot's link: {FORMS} (repeatable)")

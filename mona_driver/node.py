@@ -54,8 +54,9 @@ class MonaDriverNode(Node):
     - ``ping_period`` (double, s, default 1.0, read-only): PING for the round-trip time.
     - ``silent_after`` (double, s, default 1.0): a link without a valid frame for this
       long is reported silent.
-    - ``hello_timeout`` (double, s, default 3.0): a robot without HELLO this long after
-      its link opened is reported.
+    - ``hello_timeout`` (double, s, default 3.0): how long a serial link that opened
+      waits for the robot's HELLO before WHEELS and PING go out; a robot without one
+      by then is reported (and driven).
     - ``odom_frame``, ``base_frame``, ``ir_frame`` (string, ``{id}`` and ``{k}`` are
       replaced): frames of wheel odometry and IR ranges.
     - ``ir_gain`` (m·counts, 10.0), ``ir_offset`` (counts, 50.0), ``ir_min_range`` (m,
