@@ -40,7 +40,9 @@ def cell(text: object) -> str:
 
 
 def _default(action: argparse.Action) -> str:
-    if action.default in (None, argparse.SUPPRESS) or (action.nargs == 0 and not action.default):
+    if action.default in (None, "", argparse.SUPPRESS):
+        return ""
+    if action.nargs == 0 and not action.default:  # a switch, off unless given
         return ""
     if isinstance(action.default, list | tuple):
         return cell(" ".join(str(v) for v in action.default)) if action.default else ""
