@@ -18,7 +18,10 @@ import pytest
 from aes_ros.cli import build_parser
 
 ROOT = Path(__file__).resolve().parents[2]
-BENCH_SCRIPTS = sorted(p.name for p in (ROOT / "bench").glob("*.py"))
+#: The bench scripts (modules without a ``__main__`` block are their helpers).
+BENCH_SCRIPTS = sorted(
+    p.name for p in (ROOT / "bench").glob("*.py") if '__name__ == "__main__"' in p.read_text()
+)
 CONSOLE_SCRIPTS = sorted(tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["scripts"])
 
 
