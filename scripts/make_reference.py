@@ -60,7 +60,7 @@ class BuiltNode:
 
     name: str
     parameters: list[tuple[str, str, str, Any]]
-    endpoints: dict[str, list[str]]
+    endpoints: dict[str, dict[str, str]]
 
 
 def _setup(script: str, tmp: Path) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -78,22 +78,36 @@ def _setup(script: str, tmp: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     return {}, {}
 
 
-def _endpoints(node: Any) -> dict[str, list[str]]:
-    """The node's topics and services without rclpy's own, ``/mona_<i>`` for any robot."""
+def _qos(profile: Any) -> str:
+    """A QoS profile in a few words: reliability, durability if transient local, history."""
+    from rclpy.qos import DurabilityPolicy, HistoryPolicy, ReliabilityPolicy
 
-    def names(items: Any, attr: str) -> list[str]:
-        out = {re.sub(r"^/?mona_\d+/", "/mona_<i>/", getattr(x, attr)) for x in items}
-        return sorted(out - RCLPY_TOPICS)
+    words = ["reliable" if profile.reliability == ReliabilityPolicy.RELIABLE else "best effort"]
+    if profile.durability == DurabilityPolicy.TRANSIENT_LOCAL:
+        words.append("transient local")
+    keep_all = profile.history == HistoryPolicy.KEEP_ALL
+    words.append("keep all" if keep_all else f"depth {profile.depth}")
+    return ", ".join(words)
 
-    def served(items: Any) -> list[str]:
-        own = names(items, "srv_name")
-        return [n for n in own if n.rsplit("/", 1)[-1] not in PARAMETER_SERVICES]
+
+def _endpoints(node: Any) -> dict[str, dict[str, str]]:
+    """The node's topics (with their QoS) and services without rclpy's own, by kind;
+    ``/mona_<i>`` for any robot."""
+
+    def listed(items: Any, attr: str, topics: bool, own: bool = False) -> dict[str, str]:
+        out: dict[str, set[str]] = {}
+        for x in items:
+            name = re.sub(r"^/?mona_\d+/", "/mona_<i>/", getattr(x, attr))
+            if name in RCLPY_TOPICS or (own and name.rsplit("/", 1)[-1] in PARAMETER_SERVICES):
+                continue
+            out.setdefault(name, set()).add(_qos(x.qos_profile) if topics else "")
+        return {name: "; ".join(sorted(out[name])) for name in sorted(out)}
 
     return {
-        "publishes": names(node.publishers, "topic_name"),
-        "subscribes to": names(node.subscriptions, "topic_name"),
-        "serves": served(node.services),
-        "calls": names(node.clients, "srv_name"),
+        "publishes": listed(node.publishers, "topic_name", True),
+        "subscribes to": listed(node.subscriptions, "topic_name", True),
+        "serves": listed(node.services, "srv_name", False, own=True),
+        "calls": {n: "" for n in listed(node.clients, "srv_name", False)},
     }
 
 
@@ -188,8 +202,9 @@ def node_section(script: str, built: BuiltNode) -> list[str]:
     params_names = dict(table.rows()) if table is not None else {}
     lines = [f"### {script}", "", f"Node `{node_label(built.name)}`.", ""]
     for verb, names in built.endpoints.items():
-        if names:
-            lines.append(f"- {verb} {', '.join(f'`{n}`' for n in names)}")
+        shown = [f"`{n}` ({qos})" if qos else f"`{n}`" for n, qos in names.items()]
+        if shown:
+            lines.append(f"- {verb} {', '.join(shown)}")
     lines += ["", "| parameter | type | default | `params` | what |", "|---|---|---|---|---|"]
     for name, kind, shown, descriptor in built.parameters:
         if name in RCLPY_OWN:
