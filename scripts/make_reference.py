@@ -1,10 +1,11 @@
 """Write docs/cli.md, docs/interface.md and tests/README.md from the code.
 
 docs/cli.md comes from the ``aes-swarm`` parser; docs/interface.md from the tables
-of ``aes_ros/ros/interface.py`` and the parameters each node declares: every node
-is built once in this process, with discovery off (it reaches no other process),
-and its declarations are recorded. tests/README.md maps each module to the test
-files that import it or start its console script. Run it after changing any of them::
+of ``aes_ros/ros/interface.py`` and from every node, built once in this process with
+discovery off (it reaches no other process): the parameters it declares, the topics
+(with QoS) and services it creates. tests/README.md maps each module to the test
+files that import it, start its console script or run its subcommand. Run it after
+changing any of them (tests/unit/test_reference_docs.py fails until then)::
 
     .venv/bin/python scripts/make_reference.py          # rewrite the stale files
     .venv/bin/python scripts/make_reference.py --check  # exit 1 if one is stale
