@@ -10,11 +10,15 @@ command; SIGTERM and bad link strings get drivers of their own.
 
 from __future__ import annotations
 
+import fcntl
 import os
+import re
+import shutil
 import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -32,7 +36,7 @@ from sensor_msgs.msg import BatteryState, Range
 from std_msgs.msg import Bool
 
 from aes_ros.mona import framing
-from aes_ros.mona.geometry import wheels_from_twist
+from aes_ros.mona.geometry import MonaGeometry, wheels_from_twist
 from aes_ros.mona.messages import Ping, Stop, Telemetry, Wheels
 from aes_ros.mona.sensors import IrModel
 from aes_ros.ros import interface as names
@@ -293,3 +297,56 @@ def test_a_bad_link_exits_2_with_the_reason(link: str, reason: str) -> None:
         capture_output=True, text=True, timeout=60,
     )  # fmt: skip
     assert out.returncode == 2 and reason in out.stderr, out.stderr
+
+
+FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
+
+
+def _no_firmware_toolchain() -> str | None:
+    if shutil.which("avr-gcc") is None or shutil.which("make") is None:
+        return "needs avr-gcc and make (scripts/setup.sh installs gcc-avr avr-libc)"
+    if not Path("/usr/include/simavr/sim_avr.h").exists():
+        return "needs libsimavr (scripts/setup.sh installs simavr libsimavr-dev libelf-dev)"
+    return None
+
+
+def motor_lines(log: Path) -> list[tuple[float, int, int]]:
+    """``mona-sil``'s motor outputs: (simulated t, left, right duty)."""
+    found = re.findall(r"^motors t=([\d.]+) left=(-?\d+) right=(-?\d+)$", log.read_text(), re.M)
+    return [(float(t), int(a), int(b)) for t, a, b in found]
+
+
+@pytest.mark.skipif(_no_firmware_toolchain() is not None, reason=str(_no_firmware_toolchain()))
+def test_the_driver_drives_the_real_firmware_in_simavr(spawn, probe: Probe) -> None:
+    """cmd_vel → driver → bytes → the firmware (tests/system/test_firmware.py checks it
+    alone) → PWM; its TELEMETRY → wheel_odom; SIGTERM → STOP → motors off, well before
+    the firmware's own watchdog (a 5 s WHEELS timeout) could have stopped them."""
+    lock = Path(tempfile.gettempdir()) / "aes-swarm-firmware-build.lock"
+    with lock.open("w") as handle:  # the lock test_firmware.py's build takes
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        make = subprocess.run(["make", "-s", "-C", str(FIRMWARE)], capture_output=True,
+                              text=True, timeout=120)  # fmt: skip
+    assert make.returncode == 0, make.stdout + make.stderr
+    build = FIRMWARE / "build"
+    sil = spawn.start(str(build / "mona-sil"), "--robot-id", "0", str(build / "mona.elf"))
+    log = spawn.log(sil)
+    assert wait_for(lambda: "pty: " in log.read_text(), TIMEOUT), spawn.logs()
+    pty = re.search(r"^pty: (\S+)$", log.read_text(), re.M).group(1)  # type: ignore[union-attr]
+    driver = spawn.start(
+        "aes-mona-driver", f"--link=0=serial:{pty}", "--ros-args", "-p", "timeout_ms:=5000"
+    )
+    odom = probe.record(Odometry, robot_topic(0, names.WHEEL_ODOM), SENSOR)
+    cmd = probe.publisher(Twist, robot_topic(0, names.CMD_VEL), COMMAND)
+    left, right = wheels_from_twist(0.05, 0.5)  # 31, 70 mm/s
+    top = MonaGeometry().max_rim_speed_mm_s
+    duty = (round(255 * left / top), round(255 * right / top))
+    probe.until(lambda: cmd.publish(twist(0.05, 0.5)),
+                lambda: any((a, b) == duty for _, a, b in motor_lines(log)))  # fmt: skip
+    probe.wait(lambda: any(abs(m.twist.twist.linear.x - 1e-3 * (left + right) / 2) < 1e-6
+                           for m in list(odom)), TIMEOUT, "wheel_odom of the firmware")  # fmt: skip
+    assert "HELLO from 'mona328'" in spawn.log(driver).read_text()
+    started = next(t for t, a, b in motor_lines(log) if (a, b) == duty)
+    os.kill(driver.pid, signal.SIGTERM)
+    assert driver.wait(TIMEOUT) == 0
+    assert wait_for(lambda: motor_lines(log)[-1][1:] == (0, 0), TIMEOUT), motor_lines(log)
+    assert motor_lines(log)[-1][0] - started < 5.0  # the STOP, not the watchdog
