@@ -5,7 +5,8 @@ One driver serves the module: robot 0 on a pty, robot 1 on a pty that never says
 HELLO, robot 2 on UDP. Commands become WHEELS of the right mm/s, telemetry becomes
 topics and diagnostics, ``/swarm/enabled`` false stops every robot, every bad input
 is counted and moves nothing, a device that disappears is reopened without a stale
-command; SIGTERM and bad link strings get drivers of their own.
+command; SIGTERM and bad link strings get drivers of their own, and one more drives
+the real firmware in simavr (skipped, with the reason, without the AVR toolchain).
 """
 
 from __future__ import annotations
