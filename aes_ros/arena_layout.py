@@ -1,4 +1,5 @@
-"""The arena layout file (``arena.yaml``): the reference markers on the floor (SPEC §8).
+"""The arena layout file (``arena.yaml``): the reference markers on the floor
+(docs/design.md#tracking).
 
 :func:`load_layout` reads it, :func:`save_layout` writes it, :func:`corner_layout`
 makes the one a simulated launch uses. The simulated camera draws its markers, the

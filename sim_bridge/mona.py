@@ -1,4 +1,4 @@
-"""The Mona robot (SPEC §5) as a URDF generated from its parameters.
+"""The Mona robot (docs/design.md#mona) as a URDF generated from its parameters.
 
 Frames (REP-105): ``base_link`` lies on the ground under the midpoint of the
 wheel axle. That point is the one that moves as a unicycle (it never moves

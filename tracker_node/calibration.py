@@ -1,4 +1,4 @@
-"""The camera's pose over the arena, from reference markers on the floor (SPEC §8).
+"""The camera's pose over the arena, from reference markers on the floor (docs/design.md#tracking).
 
 - :func:`aes_ros.arena_layout.load_layout` reads ``arena.yaml``: the reference markers (id, centre,
   side, optional yaw) lying on the floor, the robots' marker height and

@@ -1,4 +1,4 @@
-"""The Mona robot's geometry and motor limits, defined once (SPEC §5).
+"""The Mona robot's geometry and motor limits, defined once (docs/design.md#mona).
 
 The simulator's URDF (:mod:`sim_bridge.mona`) and the robot driver (:mod:`mona_driver`)
 both take them from :class:`MonaGeometry`. :func:`wheels_from_twist` and
@@ -15,7 +15,7 @@ import numpy as np
 
 @dataclass(frozen=True)
 class MonaGeometry:
-    """Mona's dimensions [m], masses [kg] and motor limits (SPEC §5 defaults)."""
+    """Mona's dimensions [m], masses [kg] and motor limits (docs/design.md#mona defaults)."""
 
     body_radius: float = 0.040  #: body cylinder, Ø 80 mm
     body_height: float = 0.035  #: body cylinder height

@@ -1,4 +1,4 @@
-"""The names of the AES ROS 2 interface (SPEC §7), defined once.
+"""The names of the AES ROS 2 interface (docs/design.md#ros-interface), defined once.
 
 Topic, service, node and frame names, the choices of the string parameters and
 the ready signals that nodes print and the launcher and the tests wait for:
@@ -62,8 +62,8 @@ HEADING_ORDER = "/swarm/heading_order"
 TOTAL_FORCE = "/swarm/total_force"
 #: visualization_msgs/MarkerArray of the swarm for RViz2 and Foxglove (the dashboard's).
 MARKERS = "/swarm/markers"
-#: The overhead camera (SPEC §8): sensor_msgs/Image (mono8, stamp = exposure time) and
-#: sensor_msgs/CameraInfo (its true intrinsics and distortion).
+#: The overhead camera (docs/design.md#tracking): sensor_msgs/Image (mono8, stamp =
+#: exposure time) and sensor_msgs/CameraInfo (its true intrinsics and distortion).
 CAMERA_IMAGE = "/arena_camera/image_raw"
 CAMERA_INFO = "/arena_camera/camera_info"
 #: The bridge's exact poses while a tracker publishes /swarm/poses: for evaluation only,

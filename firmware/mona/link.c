@@ -1,4 +1,4 @@
-/* Mona link v1 framing (SPEC §9); plain C, no AVR registers. */
+/* Mona link v1 framing (docs/design.md#mona-link); plain C, no AVR registers. */
 #include "link.h"
 
 uint16_t link_crc16(const uint8_t *data, uint8_t len) {

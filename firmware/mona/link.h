@@ -1,4 +1,4 @@
-/* Mona link v1 framing (SPEC §9): COBS, CRC-16/CCITT-FALSE, payload checks. */
+/* Mona link v1 framing (docs/design.md#mona-link): COBS, CRC-16/CCITT-FALSE, payload checks. */
 #ifndef MONA_LINK_H
 #define MONA_LINK_H
 

@@ -1,5 +1,5 @@
 /*
- * Mona firmware: the Mona link v1 (SPEC §9) over the UART, driving the wheel motors.
+ * Mona firmware: the Mona link v1 (docs/design.md#mona-link) over the UART, driving the wheel motors.
  *
  * HELLO at boot and every second until the first valid frame; WHEELS drives the motors
  * until its timeout passes without another (the command watchdog); STOP stops them;
@@ -52,7 +52,7 @@ static uint8_t rx_encoded[LINK_MAX_ENCODED];
 static uint8_t rx_len;
 static uint8_t rx_skipping; /* an oversize frame: drop up to the next delimiter */
 
-/* Counted, not reported: SPEC §9 TELEMETRY has no field for them. */
+/* Counted, not reported: docs/design.md#mona-link TELEMETRY has no field for them. */
 static uint16_t dropped_frames, tx_dropped;
 
 /* The AVR watchdog stays on after a watchdog reset: turn it off before main. */

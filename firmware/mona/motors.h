@@ -4,7 +4,7 @@
 
 #include <stdint.h>
 
-/* Wheel rim speed at full duty [mm/s]: 9 rad/s × 15 mm (SPEC §5). */
+/* Wheel rim speed at full duty [mm/s]: 9 rad/s × 15 mm (docs/design.md#mona). */
 #define MOTOR_MAX_MM_S 135
 
 void motors_init(void);

@@ -18,7 +18,7 @@ from aes_ros.scenario import Scenario
 #: What ``--on-failure`` may ask for (:mod:`aes_ros.ros.launch.supervision`).
 ON_FAILURE = ("respawn", "continue", "stop")
 #: Where the robots' neighbour positions come from (``--tracking``): the bridge's exact
-#: poses, or an overhead camera and the tracker (SPEC §8).
+#: poses, or an overhead camera and the tracker (docs/design.md#tracking).
 TRACKING = ("none", "camera")
 #: The world (``--world``): the pybullet bridge, or none (a real arena's robots).
 WORLDS = ("pybullet", "none")

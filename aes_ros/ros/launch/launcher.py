@@ -1,6 +1,6 @@
 """Start the whole ROS system as separate processes, run it, stop it cleanly.
 
-What ``aes-swarm launch`` does (SPEC §7 "Processes and performance design"):
+What ``aes-swarm launch`` does (docs/design.md#processes):
 
 1. writes the effective scenario to ``<work>/scenario.yaml`` and the per-robot
    parameters to ``<work>/robots.yaml`` (:mod:`aes_ros.ros.launch.param_files`), so every

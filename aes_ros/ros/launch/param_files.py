@@ -81,8 +81,9 @@ def robot_parameters(
     sheet: tuple[np.ndarray, np.ndarray],
     scenario_file: Path | None = None,
 ) -> dict[str, Any]:
-    """SPEC §7 parameters of robot i for a stand-alone ``aes-robot-node``; ``sheet`` is
-    the (neighbours, rest lengths) table of ``config.scenario.sheet()``."""
+    """The parameters of robot i (docs/design.md#ros-interface) for a stand-alone
+    ``aes-robot-node``; ``sheet`` is the (neighbours, rest lengths) table of
+    ``config.scenario.sheet()``."""
     sc = config.scenario
     neighbors, rest = sheet
     valid = neighbors[i] >= 0
