@@ -60,7 +60,8 @@ class MonaDriverNode(Node):
     - ``odom_frame``, ``base_frame``, ``ir_frame`` (string, ``{id}`` and ``{k}`` are
       replaced): frames of wheel odometry and IR ranges.
     - ``ir_gain`` (m·counts, 10.0), ``ir_offset`` (counts, 50.0), ``ir_min_range`` (m,
-      0.01), ``ir_max_range`` (m, 0.10): the IR model (:class:`aes_ros.mona.sensors.IrModel`).
+      0.01), ``ir_max_range`` (m, 0.10), ``ir_falling`` (bool, true): the IR model
+      (:class:`aes_ros.mona.sensors.IrModel`).
     """
 
     def __init__(self, links: list[RobotLink], hub: UdpHub | None = None, **kwargs) -> None:
@@ -120,6 +121,11 @@ class MonaDriverNode(Node):
             ("ir_offset", IrModel.offset, fd("IR: ambient reading", "ADC counts", -1e5, 1e5)),
             ("ir_min_range", IrModel.min_range, fd("IR: nearest range", "m", 0.0, 10.0)),
             ("ir_max_range", IrModel.max_range, fd("IR: farthest range", "m", 1e-3, 10.0)),
+            (
+                "ir_falling",
+                IrModel.falling,
+                rp.bool_descriptor("IR: the reading falls as an obstacle comes closer"),
+            ),
         ]
         for name, default, descriptor in params:
             self.declare_parameter(name, default, descriptor)
@@ -134,7 +140,11 @@ class MonaDriverNode(Node):
             return float(changed.get(name, self.get_parameter(name).value))
 
         return IrModel(
-            value("ir_gain"), value("ir_offset"), value("ir_min_range"), value("ir_max_range")
+            value("ir_gain"),
+            value("ir_offset"),
+            value("ir_min_range"),
+            value("ir_max_range"),
+            bool(changed.get("ir_falling", self.get_parameter("ir_falling").value)),
         )
 
     def on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:

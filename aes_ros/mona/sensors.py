@@ -2,9 +2,12 @@
 
 The IR model is an assumption, not a calibration (docs/mona_protocol.md, "IR
 readings"): MonaRobot publishes no response curve of the Mona's IR proximity sensors,
-so a raw ADC reading ``raw`` is mapped by the inverse law
-``range = gain / (raw − offset)``, clipped to ``[min_range, max_range]``, with
-constants a lab replaces by its own (the driver's ``ir_*`` parameters).
+so a raw ADC reading is turned into a signal that grows with reflected light
+(``signal = 1023 − raw`` on the original Mona, whose reading falls as an obstacle
+comes closer, docs/firmware.md; ``signal = raw`` with ``falling=False``) and mapped
+by the inverse law ``range = gain / (signal − offset)``, clipped to
+``[min_range, max_range]``, with constants a lab replaces by its own (the driver's
+``ir_*`` parameters).
 """
 
 from __future__ import annotations
@@ -17,21 +20,27 @@ import numpy as np
 
 @dataclass(frozen=True)
 class IrModel:
-    """Raw IR ADC reading → range [m]: ``gain / (raw − offset)``, clipped.
+    """Raw IR ADC reading → range [m]: ``gain / (signal − offset)``, clipped.
 
-    A reading at or below ``offset`` (ambient light only, nothing seen) is
-    ``max_range``. The defaults put full scale (1023, 10-bit ADC) at 1 cm and a
-    reading of 150 at about 10 cm.
+    ``signal`` is ``FULL_SCALE − raw`` when ``falling`` (the original Mona: 1023 is
+    nothing seen), else ``raw``. A signal at or below ``offset`` (ambient light only,
+    nothing seen) is ``max_range``. The defaults put a signal of 1023 at 1 cm and one of
+    150 at about 10 cm.
     """
 
     gain: float = 10.0  #: [m · ADC counts]
     offset: float = 50.0  #: ambient reading [ADC counts]
     min_range: float = 0.01  #: [m]
     max_range: float = 0.10  #: [m]
+    falling: bool = True  #: the reading falls as an obstacle comes closer
+
+    FULL_SCALE = 1023  #: a 10-bit ADC's largest reading
 
     def range(self, raw: np.ndarray | int) -> np.ndarray:
         """Range [m] of raw readings (any shape); always finite."""
-        excess = np.asarray(raw, dtype=float) - self.offset
+        raw = np.asarray(raw, dtype=float)
+        signal = self.FULL_SCALE - raw if self.falling else raw
+        excess = signal - self.offset
         with np.errstate(divide="ignore"):
             r = np.where(excess > 0.0, self.gain / np.maximum(excess, 1e-12), self.max_range)
         return np.clip(r, self.min_range, self.max_range)

@@ -257,14 +257,25 @@ def test_wheel_limit_keeps_the_curvature() -> None:
 # ------------------------------------------------------------------------ sensors
 
 
-def test_ir_model_is_finite_monotone_and_clipped() -> None:
-    model = IrModel()
+@pytest.mark.parametrize("falling", [True, False])
+def test_ir_model_is_finite_monotone_and_clipped(falling: bool) -> None:
+    model = IrModel(falling=falling)
     raw = np.arange(0, 65536, 97)
     r = model.range(raw)
     assert np.all(np.isfinite(r))
-    assert np.all(np.diff(r) <= 0)  # more light, closer
-    assert r.min() == model.min_range and r.max() == model.max_range
+    # more reflected light, closer: on the original Mona the reading falls with it
+    assert np.all(np.diff(r) >= 0) if falling else np.all(np.diff(r) <= 0)
+    assert r.min() >= model.min_range and r.max() == model.max_range
+    if not falling:  # a signal this large is only reached when the reading grows
+        assert r.min() == model.min_range
     assert model.check() is None
+
+
+def test_ir_model_reads_the_original_monas_falling_readings() -> None:
+    """The firmware reports 1023 when nothing is seen (docs/firmware.md)."""
+    model = IrModel()
+    assert model.range(1023) == model.max_range
+    assert model.range(0) == pytest.approx(model.min_range, abs=1e-3)
     assert IrModel(min_range=0.2).check() is not None
 
 
