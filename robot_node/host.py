@@ -134,14 +134,14 @@ class RobotHostNode(Node):
             keep = table[i] >= 0
             # These overrides win over the process-wide -p ones (which still set the
             # gains of every robot).
-            overrides = [
-                *shared,
-                Parameter("robot_id", Parameter.Type.INTEGER, i),
-                Parameter("neighbors", Parameter.Type.INTEGER_ARRAY, table[i][keep].tolist()),
-                Parameter(
-                    "rest_lengths", Parameter.Type.DOUBLE_ARRAY, rest_table[i][keep].tolist()
-                ),
-            ]
+            overrides = [*shared, Parameter("robot_id", Parameter.Type.INTEGER, i)]
+            if keep.any():  # rclpy takes an empty list override for a BYTE_ARRAY
+                overrides += [
+                    Parameter("neighbors", Parameter.Type.INTEGER_ARRAY, table[i][keep].tolist()),
+                    Parameter(
+                        "rest_lengths", Parameter.Type.DOUBLE_ARRAY, rest_table[i][keep].tolist()
+                    ),
+                ]
             robot = RobotNode(
                 scenario=scen,
                 inputs=self.inputs,

@@ -321,6 +321,39 @@ def test_host_runs_every_robot(spawn, probe, source, per_participant):
     assert "Traceback" not in spawn.log(proc).read_text()
 
 
+def test_a_host_of_one_robot_drives_it_without_neighbours(spawn, probe):
+    """A swarm of one: the lone robot has no springs (an empty sheet row, which rclpy
+    once refused as a parameter override), and its command is the control law's."""
+    proc = spawn.start(
+        "aes-robot-host",
+        "--ros-args",
+        "-p",
+        "scenario:=linear",
+        "-p",
+        "num_robots:=1",
+        *NOISE_OFF,
+        name="host",
+    )
+    scen = scenario_mod.load("linear").with_robots(1)
+    xy, yaw = scen.initial_state(seed=3)
+    gains = Gains.from_mapping({**scen.values, "d_r": 0.0, "d_theta": 0.0})
+    command = SwarmCommand((-1.0, 0.0), 0.0, tuple(xy.mean(axis=0)))
+    want = expected(xy, yaw, 0, np.array([], dtype=int), np.array([]), gains, command)
+    cmds, forces = record_outputs(probe, 0)
+    poses = probe.publisher(PoseArray, names.POSES, SENSOR)
+    clock = [1.0]
+
+    def send() -> None:
+        clock[0] += 0.05
+        poses.publish(poses_msg(xy, yaw, clock[0]))
+
+    probe.until(send, lambda: bool(cmds) and bool(forces))
+    assert_command(cmds[-1], forces[-1], want)
+    assert probe.get_parameters("/mona_0/aes_robot", ["neighbors"]) == [[]]
+    assert spawn.stop(proc) == 0
+    assert "Traceback" not in spawn.log(proc).read_text()
+
+
 def wakeups_per_second(pid: int, seconds: float = 1.0) -> float:
     """How often the threads of process ``pid`` went to sleep of their own accord (their
     voluntary context switches) per second, over ``seconds``."""
