@@ -38,7 +38,7 @@ from aes_ros.previous_run import add_overwrite_option
 from aes_ros.ros.bag import SPLIT_FORMS, bag_segments, parse_split
 from aes_ros.ros.discovery import DISCOVERY_MODES, DISCOVERY_SERVER_FROM, parse_address
 from aes_ros.ros.interface import LAYOUTS, MODES, NEIGHBOR_SOURCES
-from aes_ros.ros.launch.config import ON_FAILURE, TRACKING, WORLDS
+from aes_ros.ros.launch.config import FIRMWARES, ON_FAILURE, TRACKING, WORLDS
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -144,6 +144,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help="pybullet (default): the simulated robots; none: a real arena, no bridge, "
         "every node on wall-clock time, the robots' drivers take /mona_<i>/cmd_vel (needs "
         "--tracking camera, --camera-source, --calibration; docs/real_robots.md)",
+    )  # fmt: skip
+    p.add_argument(
+        "--firmware", choices=FIRMWARES, default="none",
+        help="none (default): the simulated wheels follow /mona_<i>/cmd_vel; sil: through "
+        "the real firmware, one simulated MCU (mona-sil) per robot driven by aes-mona-driver "
+        "(needs make -C firmware; not with --world none or --lockstep; docs/firmware.md)",
     )  # fmt: skip
     p.add_argument(
         "--camera-source", default=None, metavar="DEVICE",
@@ -252,6 +258,7 @@ def run(args: argparse.Namespace) -> int:
             camera_size=args.camera_size,
             camera_rate=args.camera_rate,
             world=args.world,
+            firmware=args.firmware,
             record_images=args.record_images,
             bag_split=args.bag_split,
             bag_keep=args.bag_keep,

@@ -22,6 +22,9 @@ ON_FAILURE = ("respawn", "continue", "stop")
 TRACKING = ("none", "camera")
 #: The world (``--world``): the pybullet bridge, or none (a real arena's robots).
 WORLDS = ("pybullet", "none")
+#: ``--firmware``: none (the wheels follow ``cmd_vel``), or sil: the real firmware on
+#: simulated MCUs (:mod:`aes_ros.ros.launch.firmware`).
+FIRMWARES = ("none", "sil")
 
 
 @dataclass
@@ -68,6 +71,10 @@ class LaunchConfig:
     overwrite : replace an earlier run's outputs in ``out_dir`` and an earlier recording
         at ``record`` (removed before anything starts); without it a launch where they
         are is refused (:func:`aes_ros.ros.launch.preflight.earlier_run`).
+    firmware : ``sil``: each robot's wheels driven by the real firmware on a simulated
+        MCU through ``aes-mona-driver`` (:mod:`aes_ros.ros.launch.firmware`; needs
+        ``make -C firmware``, the bridge, real time, no lockstep); ``none``: from
+        ``cmd_vel``.
     """
 
     scenario: Scenario
@@ -109,6 +116,33 @@ class LaunchConfig:
     bridge_params: dict[str, Any] = field(default_factory=dict)
     robot_params: dict[str, Any] = field(default_factory=dict)
     supervisor_params: dict[str, Any] = field(default_factory=dict)
+    firmware: str = "none"
+
+    def _firmware_checks(self) -> list[tuple[str, bool, str]]:
+        if self.firmware != "sil":
+            return [("firmware", self.firmware in FIRMWARES, _one_of(FIRMWARES))]
+        from aes_ros.ros.launch import firmware  # it imports this module
+
+        missing = firmware.missing_build()
+        return [
+            (
+                "firmware",
+                self.world != "none",
+                "not with --world none (real robots have real firmware)",
+            ),
+            ("firmware", missing is None, missing or ""),
+            ("firmware", not self.lockstep, "not with --lockstep (an MCU runs on the wall clock)"),
+            (
+                "firmware",
+                self.real_time_factor == 1.0,
+                "only at --real-time-factor 1 (an MCU runs on the wall clock)",
+            ),
+            (
+                "firmware",
+                self.num_robots <= firmware.MAX_ROBOTS,
+                f"at most {firmware.MAX_ROBOTS} robots",
+            ),
+        ]
 
     def __post_init__(self) -> None:
         checks = [
@@ -207,6 +241,7 @@ class LaunchConfig:
                 "only with --bag-split (else there is one segment)",
             ),
         ]
+        checks += self._firmware_checks()
         for name, ok, hint in checks:
             if not ok:
                 raise ValueError(f"{name}: {getattr(self, name)!r} is not allowed; {hint}")

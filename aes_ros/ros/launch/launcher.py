@@ -64,6 +64,7 @@ from aes_ros.ros.launch import preflight
 from aes_ros.ros.launch.commands import ProcessSpec, describe, start_order
 from aes_ros.ros.launch.config import LaunchConfig, resolved_discovery
 from aes_ros.ros.launch.events import EventLog
+from aes_ros.ros.launch.firmware import start_firmware, with_firmware
 from aes_ros.ros.launch.monitor import DISCOVERY_WAIT, TIME_EPS, Monitor
 from aes_ros.ros.launch.param_files import (
     work_directory,
@@ -158,6 +159,8 @@ class Launcher:
         )
         layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
         order = start_order(cfg, scenario_file, robots_file, layout_file, self.discovery)
+        if cfg.firmware == "sil":
+            order = with_firmware(order, n)
         self._specs = order.by_name
         self._start_discovery(order.discovery_server)
         self.monitor = Monitor(
@@ -167,6 +170,9 @@ class Launcher:
             # (a server of its own, on a port just taken, has no other clients to find:
             # the wait, DISCOVERY_WAIT s of every start, would be for nothing)
             preflight.refuse_other_swarm(self.monitor.other_swarm(DISCOVERY_WAIT))
+        if cfg.firmware == "sil":  # the MCUs, their driver and loop before the bridge
+            specs = start_firmware(self.procs, n, cfg.start_timeout, self._stopping)
+            self._specs.update({spec.name: spec for spec in specs})
         if order.recorder is not None:
             self.recorder = self.procs.start(*order.recorder)
             self.recorder.wait_for(names.RECORDER_STARTED, 30.0, self._stopping)
