@@ -16,20 +16,25 @@ warm-up it measures:
   12 bytes of the frame on the simulated 115200 baud line (about 1 ms of simulated time,
   which ``mona-sil`` may run up to a few ms ahead of the wall clock).
 
-Only the MCU end is measured here: the full chain (robot node → ``cmd_vel`` →
-``aes-mona-driver`` → bytes → firmware → PWM → simulated wheels, its real-time factor
-and ψ̄ at 8 and 16 robots) needs ``aes-swarm launch --firmware sil``, which is not
-there yet.
+Then, for each ``--robots`` count, the full chain: ``aes-swarm launch --firmware sil``
+(robot node → ``cmd_vel`` → ``aes-mona-driver`` → bytes → firmware → PWM → pybullet
+wheels) beside the same seed without firmware (:mod:`firmware_chain`): the real-time
+factor of the bridge's clock, ψ̄ and ψ̄_heading of both runs and their |Δ|, and the CPU
+of each kind of process mid-run (all MCUs summed), which names the bound where a count
+falls short of real time.
 
 Usage::
 
     python bench/bench_firmware.py                     # 1, 2, 4, 8, 16 MCUs, 5 s each
     python bench/bench_firmware.py --mcus 1,32 --duration 10
-    python bench/bench_firmware.py --quick             # 1 and 2 MCUs, 2 s each
+    python bench/bench_firmware.py --quick             # 1 and 2 MCUs, 2 s each, no chain
+    python bench/bench_firmware.py --mcus 1 --robots 8 --chain-duration 30
 
 Writes ``bench_firmware.csv`` to ``--out`` (default ``out/bench_firmware``), prints a
 table and, last, ``RESULT mcus=<largest K> rtf_min=… cpu_pct=… per_core=… p50_ms=…
-p99_ms=… machine_ref_us=…`` where the latency is that of one MCU alone. Every figure
+p99_ms=… machine_ref_us=…`` where the latency is that of one MCU alone, and one
+``RESULT chain robots=N rtf=… psi=… psi_nofw=… dpsi=… psi_heading=… psi_heading_nofw=…
+dpsi_heading=… machine_ref_us=…`` per ``--robots`` count. Every figure
 is printed beside ``machine_ref_us``: µs of one agent-step of ``bench/bench_sim.py``'s
 per-agent Python loop, measured in the same run (see bench/bench_ros.py).
 """
@@ -49,7 +54,8 @@ import tty
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_ros import machine_reference_us  # a sibling script, not a package
+import firmware_chain  # sibling scripts, not a package
+from bench_ros import machine_reference_us
 
 from aes_ros.mona.messages import Wheels
 
@@ -212,11 +218,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--duration", type=seconds, default=5.0, help="measured seconds per count [s]"
     )
-    parser.add_argument("--quick", action="store_true", help="1 and 2 MCUs, 2 s each")
+    parser.add_argument(
+        "--robots", type=counts, default=[8, 16], help="robot counts of the full chain"
+    )
+    parser.add_argument(
+        "--chain-duration", type=seconds, default=20.0, help="sim seconds of each launch [s]"
+    )
+    parser.add_argument("--quick", action="store_true", help="1 and 2 MCUs, 2 s each, no chain")
     parser.add_argument("--out", type=Path, default=Path("out/bench_firmware"))
     args = parser.parse_args(argv)
     if args.quick:
-        args.mcus, args.duration = [1, 2], 2.0
+        args.mcus, args.duration, args.robots = [1, 2], 2.0, []
     build = subprocess.run(["make", "-s", "-C", str(FIRMWARE)], capture_output=True, text=True)
     if build.returncode != 0:
         print(f"make -C firmware failed:\n{build.stdout}{build.stderr}", file=sys.stderr)
@@ -232,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{k:>5} {row['rtf_min']:>8.4f} {row['rtf_mean']:>8.4f} {row['cpu_pct']:>6.2f} "
               f"{row['per_core']:>8.0f} {row['p50_ms']:>7.2f} {row['p99_ms']:>7.2f}",
               flush=True)  # fmt: skip
+    chain = [chain_row(n, args.chain_duration) for n in args.robots]
     ref = 0.5 * (ref_before + machine_reference_us())
 
     args.out.mkdir(parents=True, exist_ok=True)
@@ -246,7 +259,35 @@ def main(argv: list[str] | None = None) -> int:
         f"cpu_pct={largest['cpu_pct']:.2f} per_core={largest['per_core']:.0f} "
         f"p50_ms={alone['p50_ms']:.2f} p99_ms={alone['p99_ms']:.2f} machine_ref_us={ref:.2f}"
     )
+    for row in chain:
+        print(
+            f"RESULT chain robots={row['robots']} rtf={row['rtf']:.3f} psi={row['psi']:.3f} "
+            f"psi_nofw={row['psi_nofw']:.3f} dpsi={row['dpsi']:.3f} "
+            f"psi_heading={row['psi_heading']:.3f} "
+            f"psi_heading_nofw={row['psi_heading_nofw']:.3f} "
+            f"dpsi_heading={row['dpsi_heading']:.3f} machine_ref_us={ref:.2f}"
+        )
     return 0
+
+
+def chain_row(robots: int, duration: float) -> dict[str, float]:
+    """The full chain at ``robots`` beside the same seed without firmware; printed."""
+    plain = firmware_chain.run(robots, duration, firmware=False)
+    sil = firmware_chain.run(robots, duration, firmware=True)
+    cpu = ", ".join(f"{k} {v:.0f}" for k, v in sorted(sil["cpu"].items(), key=lambda kv: -kv[1]))
+    print(f"chain {robots} robots: rtf {sil['rtf']:.3f} (without firmware {plain['rtf']:.3f}); "
+          f"CPU % of a core: {cpu}", flush=True)  # fmt: skip
+    return {
+        "robots": robots,
+        "rtf": sil["rtf"],
+        "rtf_nofw": plain["rtf"],
+        "psi": sil["psi"],
+        "psi_nofw": plain["psi"],
+        "dpsi": abs(sil["psi"] - plain["psi"]),
+        "psi_heading": sil["psi_heading"],
+        "psi_heading_nofw": plain["psi_heading"],
+        "dpsi_heading": abs(sil["psi_heading"] - plain["psi_heading"]),
+    }
 
 
 if __name__ == "__main__":
