@@ -49,9 +49,11 @@ def _build() -> None:
 
 
 def _launch(spawn, out: Path, *extra: str) -> dict[str, np.ndarray]:
-    """One ``aes-swarm launch --setup linear`` of N robots, seed 0; its metrics.csv."""
+    """One ``aes-swarm launch --setup linear`` of N robots, seed 0, on pybullet's wheels
+    (saturated per wheel as the firmware's are); its metrics.csv."""
     launcher = spawn.start(
         "aes-swarm", "launch", "--setup", "linear", "--robots", str(N), "--seed", "0",
+        "--mode", "dynamic",
         "--duration", str(DURATION_S), "--out", str(out), *extra, name=out.name,
     )  # fmt: skip
     try:
