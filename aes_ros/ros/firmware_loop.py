@@ -9,13 +9,17 @@ speed) and publishes the body twist they drive on ``/mona_<i>/wheel_cmd``
 ROS tool read it unchanged.
 
 Reading the logs rather than the MCUs' pipes lets the launcher start and supervise each
-``mona-sil`` like every other process (a log never fills up and stalls an MCU).
+``mona-sil`` like every other process (a log never fills up and stalls an MCU). The
+driver opens each MCU through a symlink beside its log (:func:`pty_link`); a restarted
+MCU says a new ``pty:`` line, and this node points the link at it, so the driver's
+reconnect finds the new MCU.
 
     python -m aes_ros.ros.firmware_loop LOG0 LOG1 ... [--ros-args ...]
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import sys
@@ -33,6 +37,7 @@ from aes_ros.ros.spin import run_node_process
 NODE = "firmware_loop"
 #: The topic in each robot's namespace with the twist its MCU's motors drive.
 WHEEL_CMD = "wheel_cmd"
+PTY = re.compile(rb"^pty: (\S+)$", re.M)
 MOTORS = re.compile(rb"^motors t=\S+ left=(-?\d+) right=(-?\d+)$", re.M)
 DUTY_FULL = 255  # the PWM compare value of full duty (OCR1A/OCR1B)
 POLL_S = 0.01  # how often the logs are read: a small part of a 20 ms control step
@@ -43,6 +48,22 @@ def rim_speeds(left: int, right: int, geometry: MonaGeometry | None = None) -> t
     """Wheel rim speeds [mm/s] of signed PWM compare values (−255 … 255)."""
     top = (geometry or MonaGeometry()).max_rim_speed_mm_s
     return left * top / DUTY_FULL, right * top / DUTY_FULL
+
+
+def pty_link(log: Path) -> Path:
+    """The symlink to the serial device of the MCU that writes ``log``."""
+    return log.with_suffix(".pty")
+
+
+def point_link(link: Path, device: str) -> None:
+    """Make ``link`` a symlink to ``device`` (replaced in one step)."""
+    if os.path.islink(link) and os.readlink(link) == device:
+        return
+    tmp = link.with_name(link.name + ".new")
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()
+    os.symlink(device, tmp)
+    os.replace(tmp, link)
 
 
 def last_motors(text: bytes) -> tuple[int, int] | None:
@@ -56,6 +77,7 @@ class FirmwareLoopNode(Node):
 
     def __init__(self, logs: list[Path]) -> None:
         super().__init__(NODE)
+        self.logs = logs
         self.files = [open(path, "rb") for path in logs]  # closed in destroy_node
         self.pending = [b""] * len(logs)
         self.duty: list[tuple[int, int]] = [(0, 0)] * len(logs)
@@ -77,6 +99,8 @@ class FirmwareLoopNode(Node):
             text = self.pending[i] + chunk
             cut = text.rfind(b"\n") + 1
             self.pending[i] = text[cut:]
+            for device in PTY.findall(text[:cut]):  # a restarted MCU: a new device
+                point_link(pty_link(self.logs[i]), device.decode())
             duty = last_motors(text[:cut])
             if duty is not None and duty != self.duty[i]:
                 self.duty[i] = duty

@@ -3,13 +3,14 @@ driver's links, the refusals, and the MCU's PWM read back as the speeds commande
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
 
 from aes_ros import scenario
 from aes_ros.mona.geometry import MonaGeometry, twist_from_wheels, wheels_from_twist
-from aes_ros.ros.firmware_loop import last_motors, rim_speeds
+from aes_ros.ros.firmware_loop import last_motors, point_link, pty_link, rim_speeds
 from aes_ros.ros.launch import LaunchConfig
 from aes_ros.ros.launch import firmware as fw
 from aes_ros.ros.launch.commands import start_order
@@ -87,3 +88,12 @@ def test_the_pwm_read_back_is_the_twist_the_driver_sent(v: float, omega: float) 
 def test_an_unfinished_line_is_not_read() -> None:
     assert last_motors(b"motors t=1.0 left=12 right=-3\nmotors t=1.1 left=9") == (12, -3)
     assert last_motors(b"stats t=1 wall=1\n") is None
+
+
+def test_a_restarted_mcus_device_moves_the_drivers_link(tmp_path: Path) -> None:
+    link = pty_link(tmp_path / "mona_sil_3.log")
+    assert link == tmp_path / "mona_sil_3.pty"
+    point_link(link, "/dev/pts/3")
+    point_link(link, "/dev/pts/9")  # the same MCU, restarted on another device
+    assert os.readlink(link) == "/dev/pts/9"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mona_sil_3.pty"]

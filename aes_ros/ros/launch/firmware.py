@@ -18,7 +18,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from aes_ros.ros import interface as names
-from aes_ros.ros.firmware_loop import WHEEL_CMD
+from aes_ros.ros.firmware_loop import WHEEL_CMD, point_link, pty_link
 from aes_ros.ros.launch.commands import ProcessSpec, StartOrder
 from aes_ros.ros.launch.processes import ProcessSet
 
@@ -83,11 +83,13 @@ def start_firmware(
     loop that hands their motor outputs to the bridge; returns every spec started."""
     mcus = mcu_commands(num_robots)
     children = [procs.start(*spec) for spec in mcus]
-    ptys = []
+    links = []
     for child in children:
         child.wait_for(PTY_LINE, timeout, stopping)
-        ptys.append(child.line_after(PTY_LINE) or "")
-    later = [driver_command(ptys), loop_command([c.log for c in children])]
+        # the driver opens a link that firmware_loop moves to a restarted MCU's device
+        point_link(pty_link(child.log), child.line_after(PTY_LINE) or "")
+        links.append(str(pty_link(child.log)))
+    later = [driver_command(links), loop_command([c.log for c in children])]
     for spec in later:
         procs.start(*spec)
     return [*mcus, *later]
