@@ -58,10 +58,11 @@ import firmware_chain  # sibling scripts, not a package
 from bench_ros import machine_reference_us
 
 from aes_ros.mona.messages import Wheels
+from aes_ros.ros.launch.firmware import BUILD
 
-FIRMWARE = Path(__file__).resolve().parents[1] / "firmware"
-ELF = FIRMWARE / "build" / "mona.elf"
-SIL = FIRMWARE / "build" / "mona-sil"
+FIRMWARE = BUILD.parent
+ELF = BUILD / "mona.elf"
+SIL = BUILD / "mona-sil"
 PERIOD_S = 0.05  # the driver's WHEELS period: a 20 Hz control loop
 WARMUP_S = 1.0
 CLK_TCK = os.sysconf("SC_CLK_TCK")

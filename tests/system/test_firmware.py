@@ -11,22 +11,19 @@ installs both).
 
 from __future__ import annotations
 
-import fcntl
 import itertools
 import os
 import queue
 import select
-import shutil
 import subprocess
-import tempfile
 import termios
 import threading
 import time
 import tty
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
+from helpers.firmware import ELF, SIL, build, toolchain_missing
 
 from aes_ros.mona.framing import CRC, FrameReader, ProtocolError, cobs_encode, crc16
 from aes_ros.mona.geometry import MonaGeometry
@@ -44,33 +41,16 @@ from aes_ros.mona.messages import (
     decode,
 )
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-ELF = FIRMWARE / "build" / "mona.elf"
-SIL = FIRMWARE / "build" / "mona-sil"
 TOP_MM_S = MonaGeometry().max_rim_speed_mm_s
 
 
-def _toolchain_missing() -> str | None:
-    if shutil.which("avr-gcc") is None or shutil.which("make") is None:
-        return "needs avr-gcc and make (scripts/setup.sh installs gcc-avr avr-libc)"
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
-        return "needs libsimavr (scripts/setup.sh installs simavr libsimavr-dev libelf-dev)"
-    return None
-
-
-pytestmark = pytest.mark.skipif(_toolchain_missing() is not None, reason=str(_toolchain_missing()))
+pytestmark = pytest.mark.skipif(toolchain_missing() is not None, reason=str(toolchain_missing()))
 
 
 @pytest.fixture(scope="module")
 def built() -> None:
-    """``make -C firmware`` once (serialised: parallel sessions share firmware/build)."""
-    lock = Path(tempfile.gettempdir()) / "aes-swarm-firmware-build.lock"
-    with lock.open("w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        result = subprocess.run(
-            ["make", "-s", "-C", str(FIRMWARE)], capture_output=True, text=True, timeout=120
-        )
-    assert result.returncode == 0, result.stdout + result.stderr
+    """``make -C firmware`` once."""
+    build()
 
 
 def duty(mm_s: int) -> int:

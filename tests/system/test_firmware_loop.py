@@ -12,40 +12,18 @@ reach of a broken chain.
 from __future__ import annotations
 
 import csv
-import fcntl
-import shutil
 import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers.firmware import build, toolchain_missing
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
 N = 8
 DURATION_S = 14.0
 
 
-def _toolchain_missing() -> str | None:
-    if shutil.which("avr-gcc") is None or shutil.which("make") is None:
-        return "needs avr-gcc and make (scripts/setup.sh installs gcc-avr avr-libc)"
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
-        return "needs libsimavr (scripts/setup.sh installs simavr libsimavr-dev libelf-dev)"
-    return None
-
-
-pytestmark = pytest.mark.skipif(_toolchain_missing() is not None, reason=str(_toolchain_missing()))
-
-
-def _build() -> None:
-    """``make -C firmware`` (serialised: parallel sessions share firmware/build)."""
-    lock = Path(tempfile.gettempdir()) / "aes-swarm-firmware-build.lock"
-    with lock.open("w") as handle:
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        result = subprocess.run(
-            ["make", "-s", "-C", str(FIRMWARE)], capture_output=True, text=True, timeout=120
-        )
-    assert result.returncode == 0, result.stdout + result.stderr
+pytestmark = pytest.mark.skipif(toolchain_missing() is not None, reason=str(toolchain_missing()))
 
 
 def _launch(spawn, out: Path, *extra: str) -> dict[str, np.ndarray]:
@@ -66,7 +44,7 @@ def _launch(spawn, out: Path, *extra: str) -> dict[str, np.ndarray]:
 
 
 def test_the_firmware_in_the_loop_moves_and_aligns_like_the_bridge(spawn, tmp_path) -> None:
-    _build()
+    build()
     plain = _launch(spawn, tmp_path / "plain")
     sil = _launch(spawn, tmp_path / "sil", "--firmware", "sil")
 

@@ -11,15 +11,12 @@ the real firmware in simavr (skipped, with the reason, without the AVR toolchain
 
 from __future__ import annotations
 
-import fcntl
 import os
 import re
-import shutil
 import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -29,6 +26,7 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Twist
+from helpers.firmware import ELF, SIL, build, toolchain_missing
 from helpers.mona_standin import BATTERY_MV, IR_RAW, StandIn
 from helpers.probe import Probe
 from helpers.ros_env import TIMEOUT, Processes, reserved_domain_id, ros_variables, wait_for
@@ -300,36 +298,19 @@ def test_a_bad_link_exits_2_with_the_reason(link: str, reason: str) -> None:
     assert out.returncode == 2 and reason in out.stderr, out.stderr
 
 
-FIRMWARE = Path(__file__).resolve().parents[2] / "firmware"
-
-
-def _no_firmware_toolchain() -> str | None:
-    if shutil.which("avr-gcc") is None or shutil.which("make") is None:
-        return "needs avr-gcc and make (scripts/setup.sh installs gcc-avr avr-libc)"
-    if not Path("/usr/include/simavr/sim_avr.h").exists():
-        return "needs libsimavr (scripts/setup.sh installs simavr libsimavr-dev libelf-dev)"
-    return None
-
-
 def motor_lines(log: Path) -> list[tuple[float, int, int]]:
     """``mona-sil``'s motor outputs: (simulated t, left, right duty)."""
     found = re.findall(r"^motors t=([\d.]+) left=(-?\d+) right=(-?\d+)$", log.read_text(), re.M)
     return [(float(t), int(a), int(b)) for t, a, b in found]
 
 
-@pytest.mark.skipif(_no_firmware_toolchain() is not None, reason=str(_no_firmware_toolchain()))
+@pytest.mark.skipif(toolchain_missing() is not None, reason=str(toolchain_missing()))
 def test_the_driver_drives_the_real_firmware_in_simavr(spawn, probe: Probe) -> None:
     """cmd_vel → driver → bytes → the firmware (tests/system/test_firmware.py checks it
     alone) → PWM; its TELEMETRY → wheel_odom; SIGTERM → STOP → motors off, well before
     the firmware's own watchdog (a 5 s WHEELS timeout) could have stopped them."""
-    lock = Path(tempfile.gettempdir()) / "aes-swarm-firmware-build.lock"
-    with lock.open("w") as handle:  # the lock test_firmware.py's build takes
-        fcntl.flock(handle, fcntl.LOCK_EX)
-        make = subprocess.run(["make", "-s", "-C", str(FIRMWARE)], capture_output=True,
-                              text=True, timeout=120)  # fmt: skip
-    assert make.returncode == 0, make.stdout + make.stderr
-    build = FIRMWARE / "build"
-    sil = spawn.start(str(build / "mona-sil"), "--robot-id", "0", str(build / "mona.elf"))
+    build()
+    sil = spawn.start(str(SIL), "--robot-id", "0", str(ELF))
     log = spawn.log(sil)
     assert wait_for(lambda: "pty: " in log.read_text(), TIMEOUT), spawn.logs()
     pty = re.search(r"^pty: (\S+)$", log.read_text(), re.M).group(1)  # type: ignore[union-attr]
