@@ -1,0 +1,252 @@
+"""The Mona's five infrared proximity sensors, simulated by ray casting (pure: numpy + numba).
+
+Sensor k sits on the rim of the body disc (radius ``body_radius``, centred ``axle_offset``
+ahead of the pose point) at ``IR_ANGLES[k]`` from ahead, counter-clockwise, in the order of
+the Mona's TELEMETRY (0°, +37°, −37°, +67°, −67°; Arvin et al., "Mona: an affordable
+open-source mobile robot for education and research", J. Intell. Robot. Syst. 94, 2019, and
+MonaRobot's published design), and looks straight outwards. Its reading is the distance
+[m] along that ray to the nearest other robot's body disc, wall (a rectangle the robots are
+inside) or obstacle (circles and boxes), ``max_range`` when nothing is that close, 0 from
+inside one. :func:`ir_response` then adds Gaussian noise and passes the distance through
+the sensor's response curve (:class:`aes_ros.mona.sensors.IrModel`: to a raw 10-bit ADC
+reading and back), so a simulated reading is quantised like the Mona driver's.
+
+:func:`ray_distances` and :func:`ir_response` are numba kernels that numba code (the offline
+simulator's) can call; :func:`ir_ranges` is the numpy entry point. docs/model.md, "IR
+proximity sensors".
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.mona.sensors import IrModel
+
+#: Mounting angles [rad] of sensors 0…4, CCW from ahead, in TELEMETRY's order.
+IR_ANGLES = np.radians([0.0, 37.0, -37.0, 67.0, -67.0])
+#: Full field of view of one IR sensor [rad] (an assumption, docs/mona_protocol.md).
+IR_FIELD_OF_VIEW = 0.35
+#: An empty (0,) or (0, k) array: no walls, circles or boxes.
+NO_WALLS = np.zeros(0)
+
+
+@njit(inline="always")
+def _disc_hit(sx: float, sy: float, ux: float, uy: float, cx: float, cy: float, r: float) -> float:
+    """Distance along the ray (s, u) to a disc (c, r); 0 from inside, inf for a miss."""
+    qx, qy = sx - cx, sy - cy
+    c = qx * qx + qy * qy - r * r
+    if c <= 0.0:
+        return 0.0
+    b = qx * ux + qy * uy
+    disc = b * b - c
+    if b >= 0.0 or disc < 0.0:  # the disc is behind, or beside the ray
+        return math.inf
+    return -b - math.sqrt(disc)  # |s + t u - c| = r, the nearer root
+
+
+@njit(inline="always")
+def _box_hit(
+    sx: float, sy: float, ux: float, uy: float, x0: float, x1: float, y0: float, y1: float
+) -> float:
+    """Distance along the ray (s, u) to a box (slab method); 0 from inside, inf for a miss."""
+    near, far = 0.0, math.inf
+    for s, u, lo, hi in ((sx, ux, x0, x1), (sy, uy, y0, y1)):
+        if u == 0.0:
+            if s < lo or s > hi:
+                return math.inf
+        else:
+            t0, t1 = (lo - s) / u, (hi - s) / u
+            near, far = max(near, min(t0, t1)), min(far, max(t0, t1))
+    return near if near <= far else math.inf
+
+
+@njit(cache=True)
+def ray_distances(
+    positions: np.ndarray,
+    headings: np.ndarray,
+    body_radius: float,
+    axle_offset: float,
+    angles: np.ndarray,
+    max_range: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """Fill ``out`` (N, K) with each sensor's distance [m] to the nearest thing it sees.
+
+    positions : (N, 2) pose points [m; odom]; headings : (N,) [rad]; angles : (K,) mounting
+    angles [rad]; walls : (4,) x_min, x_max, y_min, y_max or (0,); circles : (M, 3) x, y, r;
+    boxes : (L, 4) x_min, x_max, y_min, y_max. A distance is in [0, max_range].
+    """
+    n, k = len(headings), len(angles)
+    centres = np.empty((n, 2))
+    for i in range(n):
+        centres[i, 0] = positions[i, 0] + axle_offset * math.cos(headings[i])
+        centres[i, 1] = positions[i, 1] + axle_offset * math.sin(headings[i])
+    # Another body can only be seen if its centre is this close to this one's.
+    reach = 2.0 * body_radius + max_range
+    for i in range(n):
+        cx, cy = centres[i, 0], centres[i, 1]
+        for a in range(k):
+            ux, uy = math.cos(headings[i] + angles[a]), math.sin(headings[i] + angles[a])
+            sx, sy = cx + body_radius * ux, cy + body_radius * uy
+            best = max_range
+            if len(walls) == 4:
+                x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
+                if sx <= x0 or sx >= x1 or sy <= y0 or sy >= y1:
+                    best = 0.0
+                else:
+                    if ux > 0.0:
+                        best = min(best, (x1 - sx) / ux)
+                    elif ux < 0.0:
+                        best = min(best, (x0 - sx) / ux)
+                    if uy > 0.0:
+                        best = min(best, (y1 - sy) / uy)
+                    elif uy < 0.0:
+                        best = min(best, (y0 - sy) / uy)
+            for j in range(n):
+                if j != i and abs(centres[j, 0] - cx) < reach and abs(centres[j, 1] - cy) < reach:
+                    best = min(
+                        best, _disc_hit(sx, sy, ux, uy, centres[j, 0], centres[j, 1], body_radius)
+                    )
+            for m in range(len(circles)):
+                best = min(
+                    best, _disc_hit(sx, sy, ux, uy, circles[m, 0], circles[m, 1], circles[m, 2])
+                )
+            for m in range(len(boxes)):
+                best = min(
+                    best,
+                    _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
+                )
+            out[i, a] = best
+
+
+@njit(cache=True)
+def ir_response(
+    distances: np.ndarray,
+    normals: np.ndarray,
+    sigma: float,
+    gain: float,
+    offset: float,
+    min_range: float,
+    max_range: float,
+    falling: bool,
+    quantise: bool,
+    out: np.ndarray,
+) -> None:
+    """Fill ``out`` with the readings [m] of the true ``distances`` (any shape, same as out).
+
+    A sensor that sees something (distance < max_range) reads the distance plus
+    ``sigma`` × ``normals`` (standard normal draws of the same shape), then, with
+    ``quantise``, that distance turned into the raw ADC reading the IR model
+    (:class:`aes_ros.mona.sensors.IrModel`: signal = offset + gain / range, raw = 1023 −
+    signal when ``falling``) would give, rounded to a whole count in [0, 1023], and back
+    through the model; clipped to [min_range, max_range]. Nothing seen reads max_range.
+    """
+    d, z, o = distances.ravel(), normals.ravel(), out.ravel()
+    for i in range(len(d)):
+        if d[i] >= max_range:
+            o[i] = max_range
+            continue
+        r = d[i] + sigma * z[i]
+        if quantise:
+            signal = offset + gain / max(r, 1e-9)
+            raw = min(max(round(1023.0 - signal if falling else signal), 0.0), 1023.0)
+            excess = (1023.0 - raw if falling else raw) - offset
+            r = gain / excess if excess > 0.0 else max_range
+        o[i] = min(max(r, min_range), max_range)
+
+
+@dataclass(frozen=True)
+class IrResponse:
+    """How a sensor turns a distance into a reading: noise and the response curve.
+
+    noise : standard deviation [m] of Gaussian noise on a distance (before quantising).
+    model : the response curve (the Mona driver's ``ir_*`` parameters).
+    quantise : pass each reading through a whole raw ADC count (False: only clip).
+    """
+
+    noise: float = 0.0
+    model: IrModel = field(default_factory=IrModel)
+    quantise: bool = True
+
+
+def _obstacle_array(values: np.ndarray | None, columns: int) -> np.ndarray:
+    if values is None:
+        return np.zeros((0, columns))
+    return np.ascontiguousarray(values, dtype=float).reshape(-1, columns)
+
+
+def ir_ranges(
+    positions: np.ndarray,
+    headings: np.ndarray,
+    *,
+    geometry: MonaGeometry | None = None,
+    walls: np.ndarray | None = None,
+    circles: np.ndarray | None = None,
+    boxes: np.ndarray | None = None,
+    response: IrResponse | None = None,
+    rng: np.random.Generator | None = None,
+) -> np.ndarray:
+    """Readings [m] of every robot's five IR sensors, (N, 5), order of :data:`IR_ANGLES`.
+
+    Parameters
+    ----------
+    positions : (N, 2) pose points [m; odom]. headings : (N,) [rad].
+    geometry : the robot's body (``body_radius``, ``axle_offset``).
+    walls : (4,) x_min, x_max, y_min, y_max of the arena (robots inside), or None.
+    circles : (M, 3) x, y, r [m] obstacles, or None. boxes : (L, 4) x_min, x_max, y_min,
+        y_max [m] obstacles, or None.
+    response : noise and response curve; None = exact distances clipped to
+        ``IrModel().max_range`` (no noise, no quantising).
+    rng : where the noise comes from (needed if ``response.noise`` > 0).
+
+    Returns
+    -------
+    (N, 5) readings; a sensor that sees nothing reads ``max_range``.
+    """
+    g = geometry or MonaGeometry()
+    positions = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)
+    headings = np.ascontiguousarray(headings, dtype=float).reshape(-1)
+    walls = NO_WALLS if walls is None else np.ascontiguousarray(walls, dtype=float).reshape(-1)
+    if len(walls) not in (0, 4):
+        raise ValueError(f"walls: {len(walls)} numbers; give x_min, x_max, y_min, y_max")
+    model = IrModel() if response is None else response.model
+    out = np.empty((len(headings), len(IR_ANGLES)))
+    ray_distances(
+        positions,
+        headings,
+        g.body_radius,
+        g.axle_offset,
+        IR_ANGLES,
+        model.max_range,
+        walls,
+        _obstacle_array(circles, 3),
+        _obstacle_array(boxes, 4),
+        out,
+    )
+    if response is None:
+        return out
+    if response.noise > 0.0 and rng is None:
+        raise ValueError("ir_ranges: noise needs an rng (numpy.random.Generator)")
+    normals = rng.standard_normal(out.shape) if response.noise > 0.0 else np.zeros(out.shape)
+    readings = np.empty_like(out)
+    ir_response(
+        out,
+        normals,
+        response.noise,
+        model.gain,
+        model.offset,
+        model.min_range,
+        model.max_range,
+        model.falling,
+        response.quantise,
+        readings,
+    )
+    return readings
