@@ -3,7 +3,7 @@
 See docs/design.md#tracking.
 
 Shared by the simulated camera (:mod:`sim_bridge.camera_render`), which draws
-them, and the tracker (:mod:`tracker_node`), which finds them; kept here, in the
+them, and the tracker (:mod:`aes_ros.tracking`), which finds them; kept here, in the
 ROS-free core, so both read the one convention.
 
 Convention
@@ -16,7 +16,7 @@ Convention
   reference markers. The price is a small Hamming distance between codes
   (OpenCV corrects no bit of it at the default ``errorCorrectionRate``, 36h11
   corrects 5), so the tracker must treat an id seen twice as suspect: it drops
-  both (:mod:`tracker_node.detection`). The two dictionaries side by side:
+  both (:mod:`aes_ros.tracking.detection`). The two dictionaries side by side:
   docs/real_robots.md#what-a-lab-needs.
 - Ids: robot ``i`` wears id ``i``; reference markers take the ids from the top
   down (249, 248, …: :func:`reference_ids`), so robots and references never

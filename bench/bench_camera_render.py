@@ -43,11 +43,11 @@ from aes_ros.markers import (
     scattered_robots,
 )
 from aes_ros.model import wrap_angle
+from aes_ros.tracking.calibration import Calibration
+from aes_ros.tracking.detection import detect_markers, detector_parameters, refine_corners
+from aes_ros.tracking.pose import marker_poses
 from sim_bridge.camera_render import CameraRenderer
 from sim_bridge.mona import MonaGeometry
-from tracker_node.calibration import Calibration
-from tracker_node.detection import detect_markers, detector_parameters, refine_corners
-from tracker_node.pose import marker_poses
 
 MILD = (-0.08, 0.02, 0.0005, -0.0005, 0.0)
 HFOV = 70.0

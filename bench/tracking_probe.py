@@ -217,9 +217,9 @@ def in_process_times(arena, size, positions, headings, frames: int = 15) -> tupl
     """Median wall ms of one render with the camera node's settings and of one detection
     of the rendered frame, on the run's exact poses (``positions: (F, N, 2)``)."""
     from aes_ros.arena_layout import corner_layout
+    from aes_ros.tracking.detection import detect_markers
     from sim_bridge.camera_node import arena_camera
     from sim_bridge.camera_render import CameraRenderer
-    from tracker_node.detection import detect_markers
 
     camera = arena_camera(list(arena), size[0], size[1], HFOV)
     layout = corner_layout(arena)

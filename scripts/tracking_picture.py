@@ -23,11 +23,11 @@ import numpy as np
 from aes_ros import scenario
 from aes_ros.arena_layout import corner_layout
 from aes_ros.markers import RobotMarker
+from aes_ros.tracking.calibration import calibrate
+from aes_ros.tracking.detection import detect_markers
+from aes_ros.tracking.pose import marker_poses
 from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import calibrate
-from tracker_node.detection import detect_markers
-from tracker_node.pose import marker_poses
 
 
 def main() -> None:

@@ -11,11 +11,11 @@ Start it (the launch does, with ``--tracking camera``)::
 From ``/arena_camera/image_raw`` + ``/arena_camera/camera_info`` (or, with
 ``--source``, frames read by OpenCV from a camera device or a video file, stamped
 with the wall clock when read) it finds the robots' ArUco markers
-(:mod:`tracker_node.detection`), maps them to the arena through a calibration
-(:mod:`tracker_node.calibration`, :mod:`tracker_node.pose`) and publishes
+(:mod:`aes_ros.tracking.detection`), maps them to the arena through a calibration
+(:mod:`aes_ros.tracking.calibration`, :mod:`aes_ros.tracking.pose`) and publishes
 ``/swarm/poses`` with the bridge's contract: index = robot id, stamp = the frame's
 exposure time. A robot not seen in a frame keeps its last pose and its age grows
-(:mod:`tracker_node.tracking`); nothing is published before every robot has been
+(:mod:`aes_ros.tracking.tracks`); nothing is published before every robot has been
 seen once. ``/diagnostics`` says once a second what it sees: detected / expected,
 the missing and the lost ids, each robot's age, the reprojection error, frames/s.
 
@@ -52,11 +52,11 @@ from aes_ros.ros.diagnostics import TRACKER_STATUS
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
-from tracker_node.calibration import Calibration, calibrate
-from tracker_node.camera_info import intrinsics, load_camera_info
-from tracker_node.detection import detect_markers
-from tracker_node.pose import marker_poses
-from tracker_node.tracking import Tracks
+from aes_ros.tracking.calibration import Calibration, calibrate
+from aes_ros.tracking.camera_info import intrinsics, load_camera_info
+from aes_ros.tracking.detection import detect_markers
+from aes_ros.tracking.pose import marker_poses
+from aes_ros.tracking.tracks import Tracks
 
 
 class TrackerNode(Node):

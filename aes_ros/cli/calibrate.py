@@ -8,7 +8,7 @@ Examples::
 ``--arena-layout`` says where the reference markers lie on the floor (and the robots' marker
 height); ``--camera-info`` gives the camera's intrinsics in the ROS camera_info YAML
 layout (what ``camera_calibration`` writes). The calibration maps image points to the
-arena at the markers' height (:mod:`tracker_node.calibration`); its residuals are
+arena at the markers' height (:mod:`aes_ros.tracking.calibration`); its residuals are
 printed, one line per reference marker. A frame that shows too few reference markers,
 or markers on one line, is refused with what is missing, and nothing is written; so is
 a calibration already in ``--out``, unless ``--overwrite``.
@@ -52,8 +52,8 @@ def run(args: argparse.Namespace) -> int:
     import cv2
 
     from aes_ros.arena_layout import CalibrationError, load_layout
-    from tracker_node.calibration import calibrate
-    from tracker_node.camera_info import load_camera_info
+    from aes_ros.tracking.calibration import calibrate
+    from aes_ros.tracking.camera_info import load_camera_info
 
     if args.arena_layout is None:  # not argparse's required=: the old --layout gives it too
         raise ParameterError("--arena-layout FILE is required")

@@ -31,9 +31,9 @@ from aes_ros.arena_layout import corner_layout, save_layout
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_pose_array, encode_image
 from aes_ros.ros.qos import IMAGES, LATCHED, SENSOR, STREAM_WRITER
+from aes_ros.tracking.calibration import calibrate
 from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import calibrate
 
 #: The arena of the closed-loop runs: the combined scenario's 16 robots drift west about
 #: 0.6 m in 15 s (0.04 m/s) without reaching a wall, so the arena keeper never acts and

@@ -14,10 +14,10 @@ import yaml
 
 from aes_ros.arena_layout import corner_layout, save_layout
 from aes_ros.cli import main
+from aes_ros.tracking.calibration import Calibration
+from aes_ros.tracking.camera_info import load_camera_info, save_camera_info
 from sim_bridge.camera_node import arena_camera
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import Calibration
-from tracker_node.camera_info import load_camera_info, save_camera_info
 
 ARENA = (-1.0, 1.0, -0.75, 0.75)
 

@@ -1,4 +1,4 @@
-"""The tracker's core (tracker_node.detection, .calibration, .pose) against the simulated
+"""The tracker's core (aes_ros.tracking.detection, .calibration, .pose) against the simulated
 camera (sim_bridge.camera_render): detection, accuracy, calibration and its refusals."""
 
 from __future__ import annotations
@@ -20,10 +20,10 @@ from aes_ros.markers import (
     scattered_robots,
 )
 from aes_ros.model import wrap_angle
+from aes_ros.tracking.calibration import Calibration, calibrate
+from aes_ros.tracking.detection import detect_markers
+from aes_ros.tracking.pose import marker_poses
 from sim_bridge.camera_render import CameraRenderer
-from tracker_node.calibration import Calibration, calibrate
-from tracker_node.detection import detect_markers
-from tracker_node.pose import marker_poses
 
 MILD = (-0.08, 0.02, 0.0005, -0.0005, 0.0)
 VIEW_MARGIN = 0.2  #: [m] seen around the arena; the reference markers lie in it

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from tracker_node.tracking import Tracks
+from aes_ros.tracking.tracks import Tracks
 
 S = 1_000_000_000
 

@@ -5,7 +5,7 @@ pose and its age grows; a robot unseen for longer than ``lost_after`` is *lost*
 (reported, its last pose still published: nothing is invented, and the robots'
 own neighbour liveness decides who counts). Ids that are neither a robot of the
 swarm nor a reference marker are *unknown* and ignored; the detector already
-drops an id seen twice in one frame (:mod:`tracker_node.detection`).
+drops an id seen twice in one frame (:mod:`aes_ros.tracking.detection`).
 
 The tracker publishes ``/swarm/poses`` only once every robot has been seen at
 least once (:attr:`Tracks.complete`): before that, a robot has no pose at all.

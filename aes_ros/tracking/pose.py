@@ -15,7 +15,7 @@ import math
 import numpy as np
 
 from aes_ros.markers import RobotMarker, base_positions, marker_corners
-from tracker_node.calibration import Calibration
+from aes_ros.tracking.calibration import Calibration
 
 
 def marker_frames(
@@ -84,7 +84,7 @@ def marker_poses(
     Parameters
     ----------
     ids : (M,) marker ids (carried through: row i of the results is ``ids[i]``).
-    corners : (M, 4, 2) [px] from :func:`tracker_node.detection.detect_markers`.
+    corners : (M, 4, 2) [px] from :func:`aes_ros.tracking.detection.detect_markers`.
     calibration : the camera; its ``marker_height`` is the markers' plane.
     marker : how the robots wear their markers (its ``size`` for the
         reprojection error, ``offset`` from the marker centre back to

@@ -41,7 +41,7 @@ from aes_ros.arena_layout import (
 )
 from aes_ros.camera import PinholeCamera
 from aes_ros.markers import RobotMarker
-from tracker_node.detection import Detections, detect_markers
+from aes_ros.tracking.detection import Detections, detect_markers
 
 #: The seen references' spread across their best-fit line, relative to their
 #: spread along it, below which they count as (nearly) on one line.
@@ -122,7 +122,7 @@ class Calibration:
     def save(self, path: Path | str) -> None:
         """Write the calibration to the YAML file ``path``."""
         with open(path, "w", encoding="utf-8") as f:
-            f.write("# aes-swarm overhead camera calibration (tracker_node.calibration)\n")
+            f.write("# aes-swarm overhead camera calibration (aes_ros.tracking.calibration)\n")
             yaml.safe_dump(self.to_dict(), f, sort_keys=False)
 
     @classmethod
