@@ -34,14 +34,16 @@ from aes_ros.ros import interface as names
 from aes_ros.ros.qos import LATEST_COMMAND
 from aes_ros.ros.spin import run_node_process
 
-NODE = "firmware_loop"
+NODE = names.FIRMWARE_LOOP_NODE
 #: The topic in each robot's namespace with the twist its MCU's motors drive.
-WHEEL_CMD = "wheel_cmd"
+WHEEL_CMD = names.WHEEL_CMD
 PTY = re.compile(rb"^pty: (\S+)$", re.M)
 MOTORS = re.compile(rb"^motors t=\S+ left=(-?\d+) right=(-?\d+)$", re.M)
 DUTY_FULL = 255  # the PWM compare value of full duty (OCR1A/OCR1B)
 POLL_S = 0.01  # how often the logs are read: a small part of a 20 ms control step
-REPUBLISH_S = 0.5  # every twist again, for a bridge that (re)started late
+# Every twist again, for a bridge that (re)started late, and within half the bridge's
+# cmd_timeout (0.5 s): a duty held longer than that must not go stale there.
+REPUBLISH_S = 0.2
 
 
 def rim_speeds(left: int, right: int, geometry: MonaGeometry | None = None) -> tuple[float, float]:
@@ -88,7 +90,7 @@ class FirmwareLoopNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(POLL_S, self.on_poll, clock=steady)
         self.create_timer(REPUBLISH_S, self.on_republish, clock=steady)
-        self.get_logger().info(f"firmware loop: {len(logs)} MCUs → {WHEEL_CMD}")
+        self.get_logger().info(f"{names.FIRMWARE_LOOP_READY} {len(logs)} MCUs → {WHEEL_CMD}")
 
     def on_poll(self) -> None:
         """Publish the twist of every MCU whose motor outputs changed."""

@@ -34,6 +34,9 @@ AES_FORCE = "aes_force"
 WHEEL_ODOM = "wheel_odom"
 IR = "ir"
 BATTERY = "battery"
+#: ``aes-swarm launch --firmware sil``: the twist robot i's simulated MCU drives, read
+#: back from its PWM outputs (``firmware_loop``); the bridge takes it for ``cmd_vel``.
+WHEEL_CMD = "wheel_cmd"
 
 
 def robot_namespace(robot_id: int) -> str:
@@ -100,6 +103,7 @@ LAUNCHER_NODE = "aes_launcher"
 STEER_NODE = "aes_steer"
 DASHBOARD_NODE = "dashboard"
 MONA_DRIVER_NODE = "mona_driver"
+FIRMWARE_LOOP_NODE = "firmware_loop"
 
 # --- choices of string parameters and options --------------------------------------------
 
@@ -124,6 +128,8 @@ BRIDGE_READY = "bridge ready:"
 ROBOTS_READY = "robots ready:"
 #: The Mona driver, once its links are open and its topics exist.
 MONA_DRIVER_READY = "mona driver ready:"
+#: ``firmware_loop``, once it reads the MCUs' logs and its topics exist.
+FIRMWARE_LOOP_READY = "firmware loop ready:"
 #: The dashboard, once its web server listens (the URL follows).
 DASHBOARD_READY = "dashboard at"
 #: The recorder, once its bag is open.
@@ -180,6 +186,9 @@ TOPICS: tuple[Endpoint, ...] = (
              "real robot i's IR sensor k = 0…4 (0°, +37°, −37°, +67°, −67°)"),
     Endpoint(f"/mona_<i>/{BATTERY}", "sensor_msgs/msg/BatteryState", "mona driver", "you",
              "real robot i's battery voltage"),
+    Endpoint(f"/mona_<i>/{WHEEL_CMD}", "geometry_msgs/msg/Twist", "firmware_loop",
+             "bridge (its cmd_vel remapped)", "with --firmware sil: the twist robot i's "
+             "simulated MCU drives, from its PWM outputs; 255 = the top rim speed"),
     Endpoint(CLOCK, "rosgraph_msgs/msg/Clock", "bridge", "every node (use_sim_time)",
              "sim time"),
     Endpoint(POSES, "geometry_msgs/msg/PoseArray", "bridge or tracker",

@@ -4,16 +4,24 @@ driver's links, the refusals, and the MCU's PWM read back as the speeds commande
 from __future__ import annotations
 
 import os
+import signal
+import sys
+import time
 from pathlib import Path
 
 import pytest
 
 from aes_ros import scenario
 from aes_ros.mona.geometry import MonaGeometry, twist_from_wheels, wheels_from_twist
+from aes_ros.ros import interface as names
 from aes_ros.ros.firmware_loop import last_motors, point_link, pty_link, rim_speeds
 from aes_ros.ros.launch import LaunchConfig
 from aes_ros.ros.launch import firmware as fw
 from aes_ros.ros.launch.commands import start_order
+from aes_ros.ros.launch.events import EventLog, fault_summary
+from aes_ros.ros.launch.processes import ProcessSet
+from aes_ros.ros.launch.recovery import Backoff
+from aes_ros.ros.launch.supervision import Supervision, ready_signal
 
 
 def firmware_duty(rim_mm_s: int) -> int:
@@ -97,3 +105,41 @@ def test_a_restarted_mcus_device_moves_the_drivers_link(tmp_path: Path) -> None:
     point_link(link, "/dev/pts/9")  # the same MCU, restarted on another device
     assert os.readlink(link) == "/dev/pts/9"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["mona_sil_3.pty"]
+
+
+def test_each_firmware_process_has_the_ready_line_it_prints() -> None:
+    assert ready_signal("mona_sil_0") == ready_signal("mona_sil_12") == fw.PTY_LINE
+    assert ready_signal("mona_driver") == names.MONA_DRIVER_READY
+    assert ready_signal("firmware_loop") == names.FIRMWARE_LOOP_READY
+    assert ready_signal("mona_sil_x") == ready_signal("robot_host_0") == names.ROBOTS_READY
+
+
+def test_a_killed_mcu_restarted_by_the_launcher_counts_as_recovered(tmp_path: Path) -> None:
+    """The launcher's own supervision restarts an MCU (firmware_loop only moves its
+    driver's link); once the new one says its device, the summary counts it recovered."""
+    procs = ProcessSet(tmp_path / "logs")
+    # a stand-in that says what mona-sil says first: a real one needs the toolchain
+    mcu = [
+        sys.executable,
+        "-c",
+        "import time; print('pty: /dev/pts/99', flush=True); time.sleep(60)",
+    ]
+    child = procs.start("mona_sil_3", mcu)
+    said: list[str] = []
+    events = EventLog(tmp_path / "events.csv", said.append)
+    watch = Supervision(procs, events, "respawn", lambda name: mcu, lambda: 1.0,
+                        backoff=Backoff(first=0.05))  # fmt: skip
+    try:
+        child.wait_for(fw.PTY_LINE, 20.0)
+        os.kill(child.proc.pid, signal.SIGKILL)
+        child.proc.wait(20.0)
+        deadline = time.monotonic() + 20.0
+        while events.counts["recovered"] == 0 and time.monotonic() < deadline:
+            watch.check()
+            time.sleep(0.02)
+    finally:
+        procs.stop(procs.children, 5.0)  # no rclpy here: no shared memory to clean
+    assert [e.event for e in events.events] == ["died", "restarted", "recovered"], said
+    assert fault_summary(events.events, watch.given_up).startswith(
+        "1 fault (mona_sil_3 1×), 1 recovered"
+    )

@@ -28,6 +28,20 @@ BAUD = 115200
 #: ``mona-sil``'s first line: its serial device follows.
 PTY_LINE = "pty:"
 MAX_ROBOTS = 255  # robot ids 0 … 254 (mona-sil's --robot-id)
+#: The process name of robot ``i``'s MCU: ``mona_sil_<i>``.
+MCU_PREFIX = "mona_sil_"
+
+
+def ready_signal(name: str) -> str | None:
+    """What the firmware-in-the-loop process ``name`` prints once it works (again): an MCU
+    its serial device, the driver and ``firmware_loop`` their ready lines; None for any
+    other process."""
+    if name.startswith(MCU_PREFIX) and name[len(MCU_PREFIX) :].isdigit():
+        return PTY_LINE
+    return {
+        names.MONA_DRIVER_NODE: names.MONA_DRIVER_READY,
+        names.FIRMWARE_LOOP_NODE: names.FIRMWARE_LOOP_READY,
+    }.get(name)
 
 
 def missing_build(build: Path | None = None) -> str | None:
@@ -43,7 +57,7 @@ def mcu_commands(num_robots: int, build: Path = BUILD) -> list[ProcessSpec]:
     """One ``mona-sil`` per robot on the firmware ELF, robot id = robot index."""
     sil, elf = str(build / "mona-sil"), str(build / "mona.elf")
     return [
-        ProcessSpec(f"mona_sil_{i}", [sil, "--robot-id", str(i), elf]) for i in range(num_robots)
+        ProcessSpec(f"{MCU_PREFIX}{i}", [sil, "--robot-id", str(i), elf]) for i in range(num_robots)
     ]
 
 
@@ -66,13 +80,13 @@ def with_firmware(order: StartOrder, num_robots: int) -> StartOrder:
 def driver_command(ptys: list[str]) -> ProcessSpec:
     """``aes-mona-driver`` with robot ``i`` on serial device ``ptys[i]``."""
     links = [arg for i, pty in enumerate(ptys) for arg in ("--link", f"{i}=serial:{pty}@{BAUD}")]
-    return ProcessSpec("mona_driver", ["aes-mona-driver", *links])
+    return ProcessSpec(names.MONA_DRIVER_NODE, ["aes-mona-driver", *links])
 
 
 def loop_command(logs: list[Path], python: str = sys.executable) -> ProcessSpec:
     """:mod:`aes_ros.ros.firmware_loop` on the MCUs' logs (robot ``i``: ``logs[i]``)."""
     return ProcessSpec(
-        "firmware_loop", [python, "-m", "aes_ros.ros.firmware_loop", *map(str, logs)]
+        names.FIRMWARE_LOOP_NODE, [python, "-m", "aes_ros.ros.firmware_loop", *map(str, logs)]
     )
 
 

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
+from aes_ros.ros.launch import firmware
 from aes_ros.ros.launch.events import EventLog, LogEvents, exit_text
 from aes_ros.ros.launch.processes import Child, ProcessSet
 from aes_ros.ros.launch.recovery import Backoff, RestartPolicy
@@ -47,7 +48,7 @@ def ready_signal(name: str) -> str:
         return names.DASHBOARD_READY
     if name == dds.SERVER_PROCESS:
         return dds.SERVER_READY
-    return names.ROBOTS_READY
+    return firmware.ready_signal(name) or names.ROBOTS_READY
 
 
 @dataclass
