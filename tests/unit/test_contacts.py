@@ -1,0 +1,117 @@
+"""The shared contact rule (aes_ros.contacts): bodies end apart, inside walls, outside obstacles."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from aes_ros.contacts import contact_geometry, resolve_contacts
+from aes_ros.mona.geometry import MonaGeometry
+
+R = MonaGeometry().body_radius
+A = MonaGeometry().axle_offset
+MM = 1e-3
+
+
+def centres(positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    return positions + A * np.stack([np.cos(headings), np.sin(headings)], axis=-1)
+
+
+def drive(positions, headings, speed, steps, dt=0.02, walls=None, circles=None, boxes=None):
+    """Euler steps straight ahead at ``speed`` [m/s], contacts resolved after each."""
+    w, c, b = contact_geometry(walls, circles, boxes)
+    total = 0
+    for _ in range(steps):
+        positions[:, 0] += speed * dt * np.cos(headings)
+        positions[:, 1] += speed * dt * np.sin(headings)
+        found, closest = resolve_contacts(positions, headings, R, A, w, c, b, 4)
+        total += found
+    return total, closest
+
+
+def test_two_discs_pushed_together_end_apart() -> None:
+    pos = np.array([[-0.2, 0.0], [0.2, 0.0]])
+    head = np.array([0.0, math.pi])
+    total, closest = drive(pos, head, 0.1, 200)
+    gap = np.linalg.norm(np.diff(centres(pos, head), axis=0))
+    assert gap >= 2 * R - MM
+    assert closest == pytest.approx(gap)
+    assert total > 0  # they did meet
+    assert head.tolist() == [0.0, math.pi]  # headings kept
+
+
+def test_robot_driven_into_a_wall_stops_at_it() -> None:
+    pos = np.array([[0.0, 0.0]])
+    head = np.array([0.3])
+    walls = (-0.5, 0.5, -0.5, 0.5)
+    total, closest = drive(pos, head, 0.1, 300, walls=walls)
+    c = centres(pos, head)[0]
+    assert total > 0
+    assert c[0] == pytest.approx(0.5 - R, abs=1e-9)  # at the wall, inside by its radius
+    assert c[1] <= 0.5 - R + 1e-9
+    assert math.isinf(closest)
+
+
+@pytest.mark.parametrize(
+    ("circles", "boxes"), [([(0.5, 0.0, 0.1)], None), (None, [(0.4, 0.6, -0.3, 0.3)])]
+)
+def test_robot_cannot_enter_an_obstacle(circles, boxes) -> None:
+    pos = np.array([[0.0, 0.01]])
+    head = np.array([0.0])
+    for _ in range(300):
+        drive(pos, head, 0.1, 1, circles=circles, boxes=boxes)
+        c = centres(pos, head)[0]
+        if circles is not None:
+            assert np.hypot(c[0] - 0.5, c[1]) >= 0.1 + R - 1e-9
+        else:
+            assert c[0] <= 0.4 - R + 1e-9
+    assert c[0] > 0.2  # it got there
+
+
+def test_a_crowd_converges_without_deep_overlaps() -> None:
+    rng = np.random.default_rng(3)
+    pos = rng.uniform(-0.3, 0.3, (100, 2))
+    head = rng.uniform(-math.pi, math.pi, 100)
+    w, c, b = contact_geometry((-0.6, 0.6, -0.6, 0.6))
+    for _ in range(50):  # the same state settled over steps, as in a run
+        resolve_contacts(pos, head, R, A, w, c, b, 4)
+    found, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
+    ctr = centres(pos, head)
+    d = np.linalg.norm(ctr[:, None] - ctr[None], axis=-1)[np.triu_indices(100, 1)]
+    assert d.min() >= 2 * R - MM
+    assert closest == pytest.approx(d.min())
+    assert np.all(np.abs(ctr) <= 0.6 - R + 1e-9)
+
+
+def test_no_overlap_leaves_positions_untouched_bit_for_bit() -> None:
+    rng = np.random.default_rng(0)
+    grid = np.stack(np.meshgrid(np.arange(10), np.arange(10)), -1).reshape(-1, 2) * 0.2
+    pos = grid + rng.uniform(-0.01, 0.01, grid.shape)
+    head = rng.uniform(-math.pi, math.pi, 100)
+    before = pos.copy()
+    w, c, b = contact_geometry((-1.0, 3.0, -1.0, 3.0), [(5.0, 5.0, 0.1)], [(6, 7, 6, 7)])
+    found, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
+    assert found == 0
+    assert pos.tobytes() == before.tobytes()
+    ctr = centres(pos, head)
+    d = np.linalg.norm(ctr[:, None] - ctr[None], axis=-1)[np.triu_indices(100, 1)]
+    assert closest == pytest.approx(d.min(), rel=1e-12)
+
+
+def test_same_input_same_bits() -> None:
+    rng = np.random.default_rng(1)
+    pos = rng.uniform(-0.2, 0.2, (50, 2))
+    head = rng.uniform(-math.pi, math.pi, 50)
+    a, b = pos.copy(), pos.copy()
+    w, c, bx = contact_geometry()
+    assert resolve_contacts(a, head, R, A, w, c, bx, 4) == resolve_contacts(
+        b, head, R, A, w, c, bx, 4
+    )
+    assert a.tobytes() == b.tobytes()
+
+
+def test_bad_walls_are_refused() -> None:
+    with pytest.raises(ValueError, match="walls"):
+        contact_geometry((0.0, 1.0, 2.0))
