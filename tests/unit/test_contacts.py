@@ -77,7 +77,7 @@ def test_a_crowd_converges_without_deep_overlaps() -> None:
     w, c, b = contact_geometry((-0.6, 0.6, -0.6, 0.6))
     for _ in range(50):  # the same state settled over steps, as in a run
         resolve_contacts(pos, head, R, A, w, c, b, 4)
-    found, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
+    _, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
     ctr = centres(pos, head)
     d = np.linalg.norm(ctr[:, None] - ctr[None], axis=-1)[np.triu_indices(100, 1)]
     assert d.min() >= 2 * R - MM
