@@ -7,22 +7,29 @@ Examples::
     aes-swarm dashboard --host 0.0.0.0               # other machines too (all need the token)
     AES_DASHBOARD_TOKEN_FILE=~/.dashboard-token aes-swarm dashboard   # a token of your own
 
-It is a ROS node (``/dashboard``) in this ROS domain: it drives a swarm started by
+It runs the dashboard's ROS node (``/dashboard``, ``python -m dashboard_node``) in this
+ROS domain, in a child process that Ctrl-C stops with it: it drives a swarm started by
 ``aes-swarm launch``, ``scripts/start_swarm.sh`` or on other hosts, through the same
 topics, services and parameters as the CLI. Its token is made up, or taken from
 ``AES_DASHBOARD_TOKEN`` or a file of mode 0600 (``--token-file``), never from the
-command line; the URL with it is printed here only.
+command line (the child gets it by environment); the URL with it is printed here only.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
+import subprocess
 import sys
 import tempfile
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from aes_ros.cli.options import add_scenario_options, load_scenario, number_type
+
+#: The dashboard node's program that prints its URL with the token (dashboard_node/__main__.py).
+DASHBOARD_PROGRAM = ("-m", "dashboard_node")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -51,7 +58,6 @@ def run(args: argparse.Namespace) -> int:
         read_token_file,
     )
     from aes_ros.ros.launch.param_files import ros_args, write_scenario
-    from dashboard_node.node import main
 
     if args.token is not None:
         print(
@@ -69,8 +75,9 @@ def run(args: argparse.Namespace) -> int:
     except TokenError as exc:
         print(f"aes-swarm dashboard: error: {exc}", file=sys.stderr)
         return 2
-    if token is not None:  # to the node in this process, by environment, never argv
-        os.environ[TOKEN_VARIABLE] = token
+    env = dict(os.environ)
+    if token is not None:  # to the node by environment, never argv
+        env[TOKEN_VARIABLE] = token
     sc = load_scenario(args)
     with tempfile.TemporaryDirectory(prefix="aes-dashboard-") as tmp:
         name = args.scenario.stem if args.scenario is not None else args.setup
@@ -81,4 +88,29 @@ def run(args: argparse.Namespace) -> int:
             "port": int(args.port),
             "use_sim_time": True,
         }
-        return main(["aes-dashboard", *ros_args(params)], print_url=True)
+        return serve([sys.executable, *DASHBOARD_PROGRAM, *ros_args(params)], env)
+
+
+def serve(command: Sequence[str], env: Mapping[str, str]) -> int:
+    """Run ``command`` in the foreground until it exits; a SIGINT or SIGTERM sent to this
+    process goes on to it (Ctrl-C in a terminal reaches both). Its exit code (128 + the
+    signal if one killed it)."""
+    child: list[subprocess.Popen] = []
+    early: list[int] = []
+
+    def forward(sig: int, _frame: object) -> None:
+        if child:
+            child[0].send_signal(sig)
+        else:
+            early.append(sig)
+
+    previous = {s: signal.signal(s, forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        child.append(subprocess.Popen(list(command), env=dict(env)))
+        for sig in early:
+            child[0].send_signal(sig)
+        code = child[0].wait()
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+    return code if code >= 0 else 128 - code

@@ -15,9 +15,9 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
+import aes_ros.cli.dashboard
 import aes_ros.ros.launch
 import aes_ros.ros.steering
-import dashboard_node.node
 from aes_ros import scenario
 from aes_ros.cli import main
 from aes_ros.params import PARAMS
@@ -159,7 +159,7 @@ def test_bad_arguments_exit_2_naming_the_option(
 
     monkeypatch.setattr(aes_ros.ros.launch, "launch", must_not_run)
     monkeypatch.setattr(aes_ros.ros.steering, "steer", must_not_run)
-    monkeypatch.setattr(dashboard_node.node, "main", must_not_run)
+    monkeypatch.setattr(aes_ros.cli.dashboard, "serve", must_not_run)
     out = aes_swarm(*args)
     assert out.returncode == 2, out
     assert option in out.stderr

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
+import aes_ros.cli.dashboard
 import aes_ros.ros.launch
-import dashboard_node.node
 from aes_ros.cli import main
 from aes_ros.params import PARAMS
 
@@ -84,7 +84,7 @@ def test_number_options_exit_2_naming_the_option_and_the_range(
         raise AssertionError(f"aes-swarm {args[0]} went on with {args[1:]}")
 
     monkeypatch.setattr(aes_ros.ros.launch, "launch", must_not_run)
-    monkeypatch.setattr(dashboard_node.node, "main", must_not_run)
+    monkeypatch.setattr(aes_ros.cli.dashboard, "serve", must_not_run)
     code = main([*args, "--out", str(tmp_path / "x")] if args[0] != "dashboard" else args)
     err = capsys.readouterr().err
     assert code == 2, err
