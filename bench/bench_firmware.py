@@ -11,10 +11,16 @@ warm-up it measures:
   clock);
 - ``cpu_pct``: CPU of one ``mona-sil`` [% of one core], the mean over the K;
   ``per_core = 100 / cpu_pct``: MCUs one core keeps in real time at that cost;
-- ``p50_ms`` / ``p99_ms``: wall time from writing a WHEELS on MCU 0's pty to its
-  ``motors`` line (the PWM compare value changed) read by this script; it holds the
-  12 bytes of the frame on the simulated 115200 baud line (about 1 ms of simulated time,
-  which ``mona-sil`` may run up to a few ms ahead of the wall clock).
+- ``wheels_p50_ms`` / ``wheels_p99_ms``: wall time from writing a WHEELS on MCU 0's
+  pty to its ``motors`` line (the PWM compare value changed) read by this script; it
+  holds the 12 bytes of the frame on the simulated 115200 baud line (about 1 ms of
+  simulated time, which ``mona-sil`` may run up to a few ms ahead of the wall clock).
+
+Then the latency of a robot's command (:mod:`firmware_latency`): from publishing
+``/mona_0/cmd_vel`` in this process, through ``aes-mona-driver``, the pty and the
+firmware, to the PWM change (``mona-sil``'s ``motors`` line) and to the
+``/mona_0/wheel_cmd`` that ``firmware_loop`` publishes from it, p50 / p99 over
+``--latency-duration`` seconds of commands at 20 Hz.
 
 Then, for each ``--robots`` count, the full chain: ``aes-swarm launch --firmware sil``
 (robot node → ``cmd_vel`` → ``aes-mona-driver`` → bytes → firmware → PWM → pybullet
@@ -28,15 +34,18 @@ Usage::
     python bench/bench_firmware.py                     # 1, 2, 4, 8, 16 MCUs, 5 s each
     python bench/bench_firmware.py --mcus 1,32 --duration 10
     python bench/bench_firmware.py --quick             # 1 and 2 MCUs, 2 s each, no chain
+    python bench/bench_firmware.py --mcus 1 --robots ""   # the latencies, no chain
     python bench/bench_firmware.py --mcus 1 --robots 8 --chain-duration 30
 
 Writes ``bench_firmware.csv`` to ``--out`` (default ``out/bench_firmware``), prints a
-table and, last, ``RESULT mcus=<largest K> rtf_min=… cpu_pct=… per_core=… p50_ms=…
-p99_ms=… machine_ref_us=…`` where the latency is that of one MCU alone, and one
-``RESULT chain robots=N rtf=… psi=… psi_nofw=… dpsi=… psi_heading=… psi_heading_nofw=…
-dpsi_heading=… machine_ref_us=…`` per ``--robots`` count. Every figure
-is printed beside ``machine_ref_us``: µs of one agent-step of ``bench/bench_sim.py``'s
-per-agent Python loop, measured in the same run (see bench/bench_ros.py).
+table and, last, ``RESULT mcus=<largest K> rtf_min=… cpu_pct=… per_core=… wheels_p50_ms=…
+wheels_p99_ms=… machine_ref_us=…`` where the latency is that of one MCU alone, ``RESULT
+latency cmd_vel_pwm_p50_ms=… cmd_vel_pwm_p99_ms=… cmd_vel_wheel_cmd_p50_ms=…
+cmd_vel_wheel_cmd_p99_ms=… samples=… machine_ref_us=…``, and one ``RESULT chain
+robots=N rtf=… psi=… psi_nofw=… dpsi=… psi_heading=… psi_heading_nofw=… dpsi_heading=…
+machine_ref_us=…`` per ``--robots`` count. Every figure is printed beside
+``machine_ref_us``: µs of one agent-step of ``bench/bench_sim.py``'s per-agent Python
+loop, measured in the same run (see bench/bench_ros.py).
 """
 
 from __future__ import annotations
@@ -55,6 +64,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import firmware_chain  # sibling scripts, not a package
+import firmware_latency
 from bench_ros import machine_reference_us
 
 from aes_ros.mona.messages import Wheels
@@ -187,20 +197,24 @@ def measure(k: int, duration: float) -> dict[str, float]:
         "rtf_mean": statistics.fmean(rtfs),
         "cpu_pct": cpu_pct,
         "per_core": 100.0 / cpu_pct if cpu_pct > 0 else float("inf"),
-        "p50_ms": q[49],
-        "p99_ms": q[98],
+        "wheels_p50_ms": q[49],
+        "wheels_p99_ms": q[98],
         "samples": len(lat),
     }
 
 
-def counts(text: str) -> list[int]:
+def counts(text: str, empty: bool = False) -> list[int]:
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        values = []
-    if not values or any(not 1 <= v <= 256 for v in values):
-        raise argparse.ArgumentTypeError(f"'{text}': comma-separated MCU counts in 1..256")
+        values = [0]
+    if (not values and not empty) or any(not 1 <= v <= 256 for v in values):
+        raise argparse.ArgumentTypeError(f"'{text}': comma-separated counts in 1..256")
     return values
+
+
+def robot_counts(text: str) -> list[int]:
+    return counts(text, empty=True)  # "": no full chain
 
 
 def seconds(text: str) -> float:
@@ -220,8 +234,15 @@ def main(argv: list[str] | None = None) -> int:
         "--duration", type=seconds, default=5.0, help="measured seconds per count [s]"
     )
     parser.add_argument(
-        "--robots", type=counts, default=[8, 16], help="robot counts of the full chain"
+        "--robots",
+        type=robot_counts,
+        default=[8, 16],
+        help='robot counts of the full chain ("": none)',
     )
+    parser.add_argument(
+        "--latency-duration", type=seconds, default=10.0,
+        help="seconds of cmd_vel for the cmd_vel → PWM latency [s]",
+    )  # fmt: skip
     parser.add_argument(
         "--chain-duration", type=seconds, default=20.0, help="sim seconds of each launch [s]"
     )
@@ -229,7 +250,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path, default=Path("out/bench_firmware"))
     args = parser.parse_args(argv)
     if args.quick:
-        args.mcus, args.duration, args.robots = [1, 2], 2.0, []
+        args.mcus, args.duration, args.robots, args.latency_duration = [1, 2], 2.0, [], 2.0
     build = subprocess.run(["make", "-s", "-C", str(FIRMWARE)], capture_output=True, text=True)
     if build.returncode != 0:
         print(f"make -C firmware failed:\n{build.stdout}{build.stderr}", file=sys.stderr)
@@ -238,13 +259,18 @@ def main(argv: list[str] | None = None) -> int:
     ref_before = machine_reference_us()
     rows = []
     print(f"{'MCUs':>5} {'rtf min':>8} {'rtf mean':>8} {'CPU %':>6} {'per core':>8} "
-          f"{'p50 ms':>7} {'p99 ms':>7}", flush=True)  # fmt: skip
+          f"{'WHEELS→PWM p50 ms':>17} {'p99 ms':>7}", flush=True)  # fmt: skip
     for k in args.mcus:
         row = measure(k, args.duration)
         rows.append(row)
         print(f"{k:>5} {row['rtf_min']:>8.4f} {row['rtf_mean']:>8.4f} {row['cpu_pct']:>6.2f} "
-              f"{row['per_core']:>8.0f} {row['p50_ms']:>7.2f} {row['p99_ms']:>7.2f}",
-              flush=True)  # fmt: skip
+              f"{row['per_core']:>8.0f} {row['wheels_p50_ms']:>17.2f} "
+              f"{row['wheels_p99_ms']:>7.2f}", flush=True)  # fmt: skip
+    lat = firmware_latency.measure(args.latency_duration, firmware_chain.ros_environment())
+    print(f"cmd_vel → PWM p50 {lat['pwm_p50_ms']:.2f} ms, p99 {lat['pwm_p99_ms']:.2f} ms "
+          f"({lat['pwm_samples']} of {lat['sent']}); cmd_vel → wheel_cmd p50 "
+          f"{lat['wheel_cmd_p50_ms']:.2f} ms, p99 {lat['wheel_cmd_p99_ms']:.2f} ms "
+          f"({lat['wheel_cmd_samples']})", flush=True)  # fmt: skip
     chain = [chain_row(n, args.chain_duration) for n in args.robots]
     ref = 0.5 * (ref_before + machine_reference_us())
 
@@ -258,7 +284,15 @@ def main(argv: list[str] | None = None) -> int:
     print(
         f"RESULT mcus={largest['mcus']} rtf_min={largest['rtf_min']:.4f} "
         f"cpu_pct={largest['cpu_pct']:.2f} per_core={largest['per_core']:.0f} "
-        f"p50_ms={alone['p50_ms']:.2f} p99_ms={alone['p99_ms']:.2f} machine_ref_us={ref:.2f}"
+        f"wheels_p50_ms={alone['wheels_p50_ms']:.2f} wheels_p99_ms={alone['wheels_p99_ms']:.2f} "
+        f"machine_ref_us={ref:.2f}"
+    )
+    print(
+        f"RESULT latency cmd_vel_pwm_p50_ms={lat['pwm_p50_ms']:.2f} "
+        f"cmd_vel_pwm_p99_ms={lat['pwm_p99_ms']:.2f} "
+        f"cmd_vel_wheel_cmd_p50_ms={lat['wheel_cmd_p50_ms']:.2f} "
+        f"cmd_vel_wheel_cmd_p99_ms={lat['wheel_cmd_p99_ms']:.2f} "
+        f"samples={lat['pwm_samples']} machine_ref_us={ref:.2f}"
     )
     for row in chain:
         print(

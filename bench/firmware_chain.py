@@ -22,6 +22,8 @@ from pathlib import Path
 
 import psutil
 
+from aes_ros.ros.programs import executable
+
 PROGRESS = re.compile(r"t =\s*([\d.]+) s .*\[wall ([\d.]+) s\]")
 #: Which process a command line is, for the CPU profile.
 KINDS = (
@@ -61,13 +63,20 @@ def cpu_profile(root: psutil.Process, window_s: float) -> dict[str, float]:
     return out
 
 
-def run(robots: int, duration: float, firmware: bool, seed: int = 0) -> dict[str, object]:
-    """One launch; its real-time factor, ψ̄, ψ̄_heading and CPU profile."""
+def ros_environment() -> dict[str, str]:
+    """The environment of the benchmark's ROS processes: this host only, a domain of its
+    own unless ``ROS_DOMAIN_ID`` is set."""
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     env.setdefault("ROS_DOMAIN_ID", str(140 + os.getpid() % 40))
+    return env
+
+
+def run(robots: int, duration: float, firmware: bool, seed: int = 0) -> dict[str, object]:
+    """One launch; its real-time factor, ψ̄, ψ̄_heading and CPU profile."""
+    env = ros_environment()
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
-        cmd = ["aes-swarm", "launch", "--setup", "linear", "--robots", str(robots),
+        cmd = [executable("aes-swarm"), "launch", "--setup", "linear", "--robots", str(robots),
                "--mode", "dynamic", "--seed", str(seed), "--duration", str(duration),
                "--out", str(out), *(["--firmware", "sil"] if firmware else [])]  # fmt: skip
         proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
