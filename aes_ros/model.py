@@ -17,6 +17,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from aes_ros.avoidance import N_IR, avoidance_force
 from aes_ros.params import PARAMS
 
 
@@ -32,6 +33,7 @@ class Gains:
     w_r: float = PARAMS["w_r"].default
     d_r: float = PARAMS["d_r"].default
     d_theta: float = PARAMS["d_theta"].default
+    w_o: float = PARAMS["w_o"].default
 
     @classmethod
     def from_mapping(cls, values: dict) -> Gains:
@@ -283,12 +285,13 @@ class RobotInput:
     dt: float  #: control period Δt [s]
     rng: np.random.Generator | None  #: noise source; None: noise off
     limits: tuple[float, float] | None  #: (max_linear_speed, max_angular_speed) or None
+    ir_ranges: np.ndarray | None = None  #: (5,) IR ranges [m], or None: no sensors
 
     def arguments(self) -> tuple:
         """Positional arguments of :func:`robot_command`."""
         return (
             self.position, self.heading, self.neighbor_positions, self.rest_lengths,
-            self.gains, self.command, self.dt, self.rng, self.limits,
+            self.gains, self.command, self.dt, self.rng, self.limits, self.ir_ranges,
         )  # fmt: skip
 
 
@@ -302,6 +305,7 @@ def robot_command(
     dt: float,
     rng: np.random.Generator | None = None,
     limits: tuple[float, float] | None = None,
+    ir_ranges: np.ndarray | None = None,
 ) -> RobotCommand:
     """The control law of one robot (E1–E6): what a robot node publishes as ``cmd_vel``.
 
@@ -319,6 +323,8 @@ def robot_command(
         it counts as :data:`MIN_NOISE_DT`).
     rng : noise source; None switches noise off.
     limits : (max_linear_speed, max_angular_speed) to clip to, or None.
+    ir_ranges : (5,) the robot's IR ranges [m] (:mod:`aes_ros.avoidance`), or None (no
+        sensors); with ``gains.w_o > 0`` their repulsion joins f.
     """
     position = np.asarray(position, dtype=float)
     offsets = np.asarray(neighbor_positions, dtype=float).reshape(-1, 2) - position
@@ -327,6 +333,8 @@ def robot_command(
     if command.omega != 0.0:
         center = position if command.center is None else command.center
         force = force + rotation_forces(position[None, :], center, command.omega, gains.w_r)[0]
+    if ir_ranges is not None and gains.w_o > 0.0:
+        force = force + avoidance_force(ir_ranges, heading, gains.w_o)
     noise = draw_noise(rng) if rng is not None else None
     u, turn_rate = motion_commands(force, np.asarray(heading, dtype=float), gains, dt, noise)
     if limits is not None:
@@ -346,6 +354,7 @@ def robot_commands(
     dt: np.ndarray,
     noise: Noise | None = None,
     limits: np.ndarray | None = None,
+    ir_ranges: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`robot_command` for R robots at once, each with its own inputs.
 
@@ -366,6 +375,7 @@ def robot_commands(
         :func:`draw_noise` (zeros for a robot without noise), or None.
     limits : (R, 2) (max_linear_speed, max_angular_speed), ``inf`` = not clipped;
         None = nothing clipped.
+    ir_ranges : (R, 5) IR ranges [m], NaN for a robot without sensors; None = none has.
 
     Returns
     -------
@@ -377,6 +387,10 @@ def robot_commands(
     rotation = rotation_forces(positions[:, None, :], centers, 1.0, 1.0)[:, 0]
     rotation = (gains.w_r * omegas)[:, None] * rotation
     force = force + np.where((omegas != 0.0)[:, None], rotation, 0.0)
+    if ir_ranges is not None:
+        sensing = (gains.w_o > 0.0) & ~np.isnan(ir_ranges).all(axis=-1)
+        avoid = force + avoidance_force(ir_ranges, headings, gains.w_o)
+        force = np.where(sensing[:, None], avoid, force)
     u, turn_rate = motion_commands(force, headings, gains, dt, noise)
     if limits is not None:
         u, turn_rate = clip_commands(u, turn_rate, limits[:, 0], limits[:, 1])
@@ -407,6 +421,7 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
     directions, omegas, centers = np.empty((r, 2)), np.empty(r), np.empty((r, 2))
     dt, limits = np.empty(r), np.full((r, 2), np.inf)
     noise = (np.zeros(r), np.zeros(r), np.zeros(r))
+    ir_ranges = None
     noisy, uniforms = [], []
     for row, job in enumerate(inputs):
         n = len(job.rest_lengths)
@@ -422,6 +437,10 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
         dt[row] = job.dt
         if job.limits is not None:
             limits[row] = job.limits
+        if job.ir_ranges is not None:
+            if ir_ranges is None:
+                ir_ranges = np.full((r, N_IR), np.nan)
+            ir_ranges[row] = job.ir_ranges
         if job.rng is not None:  # draws in draw_noise's order: angle, then ξ_θ
             noisy.append(row)
             uniforms.append(job.rng.random())
@@ -432,8 +451,9 @@ def evaluate_robots(inputs: Sequence[RobotInput]) -> list[RobotCommand]:
         noise[0][noisy], noise[1][noisy] = xi_x, xi_y
     gains = Gains(**{name: gain_rows[:, col] for col, name in enumerate(GAIN_FIELDS)})
     u, turn_rate, forces = robot_commands(
-        positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits
-    )
+        positions, headings, neighbors, rest, gains, directions, omegas, centers, dt, noise, limits,
+        ir_ranges,
+    )  # fmt: skip
     return [
         RobotCommand(linear, angular, force)
         for linear, angular, force in zip(u.tolist(), turn_rate.tolist(), forces, strict=True)

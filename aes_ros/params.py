@@ -217,6 +217,16 @@ PARAMS: dict[str, ParamSpec] = {
             low=0.0,
             high=10.0,
         ),
+        _p(
+            "w_o",
+            0.0,
+            "float",
+            "obstacle-avoidance weight w_o: repulsion from the five IR ranges, added to the "
+            "force (docs/model.md, Obstacle avoidance); 0: off",
+            "N",
+            low=0.0,
+            high=10.0,
+        ),
         # --- swarm command (docs/design.md#extensions) ---
         _p(
             "direction",

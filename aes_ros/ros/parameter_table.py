@@ -15,7 +15,7 @@ from aes_ros.ros import interface as names
 #: Declared by every node that reads the scenario (``parameters.declare_scenario``).
 SCENARIO = ("scenario", "num_robots")
 #: The gains every controller node declares from ``PARAMS``.
-GAINS = ("alpha", "beta", "k", "v0", "w_l", "w_r", "d_r", "d_theta")
+GAINS = ("alpha", "beta", "k", "v0", "w_l", "w_r", "d_r", "d_theta", "w_o")
 
 
 @dataclass(frozen=True)
