@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from aes_ros import obstacles
+
 #: What a vector parameter may be given as: rclpy hands double arrays over as array('d').
 SEQUENCES = (list, tuple, array.array)
 
@@ -29,8 +31,9 @@ class ParamSpec:
     """Definition of one parameter.
 
     ``kind`` is one of ``"float"``, ``"int"``, ``"bool"``, ``"str"``, ``"vec2"``
-    (two floats), ``"center"`` (``"centroid"`` or two floats) or ``"rect"`` (empty,
-    or four floats x_min, x_max, y_min, y_max with x_min < x_max and y_min < y_max).
+    (two floats), ``"center"`` (``"centroid"`` or two floats), ``"rect"`` (empty,
+    or four floats x_min, x_max, y_min, y_max with x_min < x_max and y_min < y_max) or
+    ``"obstacles"`` (circles and boxes, :mod:`aes_ros.obstacles`).
     ``low``/``high`` bound numbers (and every component of a ``vec2`` or ``rect``);
     ``choices`` lists allowed strings.
     """
@@ -64,6 +67,12 @@ class ParamSpec:
                 f"empty (none) or four numbers 'x_min,x_max,y_min,y_max', each in {rng}, "
                 "x_min < x_max, y_min < y_max"
             )
+        if self.kind == "obstacles":
+            return (
+                "empty (none) or circles and boxes 'circle:x,y,r;box:x_min,x_max,y_min,y_max' "
+                "(YAML: a list of {circle: [x, y, r]} and {box: [x_min, x_max, y_min, y_max]}), "
+                f"each number in {rng}, r > 0, x_min < x_max, y_min < y_max"
+            )
         return f"a number in {rng}"
 
     def validate(self, value: Any) -> Any:
@@ -91,6 +100,8 @@ class ParamSpec:
             return "centroid"
         if self.kind == "rect":
             return self._rect(value)
+        if self.kind == "obstacles":
+            return obstacles.parse(value, self.low, self.high)
         if self.kind in ("vec2", "center"):
             if isinstance(value, str):
                 value = [v for v in value.replace("[", "").replace("]", "").split(",") if v]
@@ -343,6 +354,34 @@ PARAMS: dict[str, ParamSpec] = {
             "m",
             low=0.001,
             high=100.0,
+        ),
+        # --- bodies: contacts, walls and obstacles (aes_ros.contacts) ---
+        _p(
+            "contacts",
+            False,
+            "bool",
+            "robots are discs of the body radius that push each other apart and stop at "
+            "walls and obstacles; false: they pass through each other and everything",
+        ),
+        _p(
+            "walls",
+            (),
+            "rect",
+            "walls around the arena (world frame, odom): a rectangle the robots' bodies stay "
+            "inside when contacts are on; empty: no walls",
+            "m",
+            low=-1e4,
+            high=1e4,
+        ),
+        _p(
+            "obstacles",
+            (),
+            "obstacles",
+            "fixed obstacles, circles x,y,r and boxes x_min,x_max,y_min,y_max, that the "
+            "robots' bodies cannot enter when contacts are on; empty: none",
+            "m",
+            low=-1e4,
+            high=1e4,
         ),
     ]
 }

@@ -25,6 +25,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from aes_ros import scenario as scenario_mod
+from aes_ros.obstacles import format_obstacles
 from aes_ros.params import PARAMS, ParameterError, ParamSpec
 
 #: Robot limits (docs/design.md#mona).
@@ -117,6 +118,8 @@ def to_ros_value(spec: ParamSpec, value: Any) -> Any:
         return float(value)
     if spec.kind == "vec2":
         return [float(value[0]), float(value[1])]
+    if spec.kind == "obstacles":  # a string parameter, one line (aes_ros.obstacles)
+        return format_obstacles(value)
     return value
 
 
