@@ -5,7 +5,8 @@ odometry, the swarm command) into the inputs of the control law
 (:class:`aes_ros.model.RobotInput`, evaluated by :func:`aes_ros.model.evaluate_robots`):
 the robot's sheet with rest lengths latched at first sight where none were given,
 the neighbours still alive (:mod:`robot_node.liveness`), the rotation centre
-(:mod:`robot_node.rotation_center`), Δt from the stamps, the noise generator.
+(:mod:`robot_node.rotation_center`), Δt from the stamps, the noise generator, the
+latest IR ranges (:mod:`robot_node.ir_readings`).
 The ROS node (:mod:`robot_node.node`) only converts messages and parameters for it.
 """
 
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aes_ros.model import Gains, RobotInput, SwarmCommand
+from robot_node.ir_readings import IrReadings
 from robot_node.liveness import NeighborLiveness
 from robot_node.rotation_center import RotationCenterRule
 
@@ -95,6 +97,7 @@ class RobotController:
         self.enabled = True
         self.center = center
         self.liveness = NeighborLiveness(0)
+        self.ir = IrReadings()
         self.dt = DEFAULT_DT
         self._last_stamp: int | None = None
         self._neighbor_odom: dict[int, tuple[int, float, float]] = {}
@@ -208,6 +211,7 @@ class RobotController:
                 # belongs to the old time line.
                 self.liveness.clear()
                 self._neighbor_odom.clear()
+                self.ir.clear()
         self._last_stamp = stamp_ns
         if self.liveness:
             ids = self._neighbors if slots is None else self._neighbors[slots]
@@ -241,6 +245,8 @@ class RobotController:
         )
         s = self._settings
         rng = self._rng if (s.gains.d_r > 0.0 or s.gains.d_theta > 0.0) else None
+        ir_ranges = self.ir.ranges(stamp_ns) if s.gains.w_o > 0.0 else None
         return RobotInput(
-            position, heading, neighbor_positions, rest, s.gains, command, self.dt, rng, s.limits
-        )
+            position, heading, neighbor_positions, rest, s.gains, command, self.dt, rng, s.limits,
+            ir_ranges,
+        )  # fmt: skip

@@ -5,7 +5,8 @@ For every new pose of its robot the node evaluates the control law
 E1–E6) and publishes exactly one ``cmd_vel`` (geometry_msgs/Twist) and, when
 anything subscribes to it, one ``aes_force`` (the noise-free force f_i,
 geometry_msgs/Vector3Stamped in ``odom``; unheard, it would cost a third of the
-robot's CPU). The node only converts: parameters into
+robot's CPU). With ``w_o > 0`` it also reads its robot's five IR ranges for the
+avoidance term (docs/model.md, "Obstacle avoidance"). The node only converts: parameters into
 :class:`robot_node.controller.RobotSettings`, messages into the calls of
 :class:`robot_node.controller.RobotController`, results into messages. The
 ``/swarm/*`` inputs come through the process's :class:`robot_node.swarm_inputs.SwarmInputs`.
@@ -36,14 +37,16 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Twist, Vector3Stamped
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import Range
 
+from aes_ros.avoidance import N_IR
 from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import Vector3StampedEncoder, encode_twist
 from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.node_tools import PublishCounter, ThrottledWarnings
-from aes_ros.ros.qos import COMMAND, COMMAND_KEPT
+from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, SENSOR
 from aes_ros.ros.spin import run_node_process
 from aes_ros.scenario import Scenario
 from robot_node.controller import (
@@ -81,9 +84,10 @@ class RobotNode(Node):
     - ``rest_lengths`` (double[] [m], default: from the scenario's sheet if the
       neighbours are too, else empty): l_ij, one per neighbour; empty = latch the
       distances at the first poses received.
-    - ``alpha``, ``beta``, ``k``, ``v0``, ``w_l``, ``w_r``, ``d_r``, ``d_theta``,
+    - ``alpha``, ``beta``, ``k``, ``v0``, ``w_l``, ``w_r``, ``d_r``, ``d_theta``, ``w_o``,
       ``max_linear_speed`` [m/s], ``max_angular_speed`` [rad/s] (double, default:
-      the scenario's values; ranges from :data:`aes_ros.params.PARAMS`).
+      the scenario's values; ranges from :data:`aes_ros.params.PARAMS`). With ``w_o > 0``
+      the robot subscribes to its IR ranges (and only then).
     - ``clip`` (bool, default true): clip commands to the robot's limits.
     - ``neighbor_timeout`` (double [s], default 1.0): a neighbour not heard from
       for longer than this (by stamp, relative to the own pose) is left out of the
@@ -101,8 +105,10 @@ class RobotNode(Node):
     process's :class:`SwarmInputs`; a robot alone makes its own); ``odom`` and
     ``/mona_<j>/odom`` of every neighbour j (``odom`` source; each topic subscribed once
     per process, through ``inputs``); ``/mona_<j>/aes_force``
-    of every neighbour j run by another process (liveness). Publishes ``cmd_vel``
-    and ``aes_force``.
+    of every neighbour j run by another process (liveness); ``/mona_<i>/ir_<k>``, k = 0…4
+    (sensor_msgs/Range, sensor-data QoS; only while ``w_o > 0``: a reading older than
+    0.5 s counts as nothing seen, one that is no distance in [0, 1] m is dropped with a
+    warning). Publishes ``cmd_vel`` and ``aes_force``.
     """
 
     def __init__(
@@ -134,8 +140,11 @@ class RobotNode(Node):
             center=self._inputs.center,
         )  # fmt: skip
         self._alive_subs: dict[int, Any] = {}
+        self._ir_subs: list[Any] = []
+        self._ir_robot: int | None = None
         self._local_version = -1
         self._sync_subscriptions()
+        self._sync_ir()
         self._inputs.add(self)
         if alone:
             self.get_logger().info(f"{names.ROBOTS_READY} robot {self.robot_id}")
@@ -272,6 +281,7 @@ class RobotNode(Node):
         old = self.controller.settings
         self.controller.configure(self._settings())
         self._sync_subscriptions()
+        self._sync_ir()
         new = self.controller.settings
         if (old.robot_id, old.neighbor_source, old.neighbors) != (
             new.robot_id,
@@ -293,6 +303,28 @@ class RobotNode(Node):
         before = self._inputs.listen_odom(self, topics)
         for j in set(before.values()) - set(topics.values()) - {None}:
             self.controller.forget_neighbor(j)
+
+    def _sync_ir(self) -> None:
+        """Read this robot's five IR ranges while ``w_o > 0``, and not otherwise: a host of
+        100 robots without avoidance keeps no 500 subscriptions."""
+        robot = self.robot_id if self.controller.settings.gains.w_o > 0.0 else None
+        if robot == self._ir_robot:
+            return
+        for sub in self._ir_subs:
+            self.destroy_subscription(sub)
+        self._ir_subs, self._ir_robot = [], robot
+        self.controller.ir.clear()
+        if robot is None:
+            return
+        for k in range(N_IR):
+            self._ir_subs.append(
+                self.create_subscription(
+                    Range,
+                    names.robot_topic(robot, f"{names.IR}_{k}"),
+                    lambda msg, k=k: self.on_ir(k, msg),
+                    SENSOR,
+                )
+            )
 
     def _sync_liveness(self) -> None:
         """``poses`` source: listen to the ``aes_force`` of every neighbour not run by
@@ -332,6 +364,12 @@ class RobotNode(Node):
             self._sync_liveness()
         job = self.controller.odom_input(sec * 1_000_000_000 + nanosec, x, y, yaw)
         self._inputs.odom_input(self, Time(sec=sec, nanosec=nanosec), job)
+
+    def on_ir(self, sensor: int, msg: Range) -> None:
+        """One IR range of this robot: kept for the next command, or dropped with a reason."""
+        reason = self.controller.ir.heard(sensor, stamp_to_ns(msg.header.stamp), msg.range)
+        if reason is not None:
+            self._warn(reason)
 
     # --- output -----------------------------------------------------------------------
 
