@@ -3,7 +3,7 @@
 1. **100 robots, a real swarm**: ``aes-swarm launch --setup linear --robots 100
    --dashboard 0`` in a ROS domain of its own, one viewer in headless Chromium and
    one WebSocket reader in this process (both as the page: the sheet once, then
-   frames at the default ``frame_rate``). Over ``--seconds`` wall seconds: the
+   frames at the default ``frame_rate``). Over ``--duration`` wall seconds: the
    dashboard process's CPU [% of one core] (target ≤ 10 %), next to the bridge's in
    the same run (its ratio holds across machines), the WebSocket bytes per second
    of one viewer, and the page's pictures per second.
@@ -18,7 +18,7 @@
 Usage::
 
     python bench/bench_dashboard.py               # ~1.5 min
-    python bench/bench_dashboard.py --seconds 20 --screenshot docs/dashboard.png
+    python bench/bench_dashboard.py --duration 20 --screenshot docs/dashboard.png
 
 Prints a table and, as its last line, ``RESULT cpu_pct_100=… bridge_cpu_pct_100=…
 ws_kbytes_s_100=… page_fps_100=… page_fps_1000=… draw_ms_1000=… targets_met=yes|no``.
@@ -49,6 +49,7 @@ from helpers.browser import headless_chromium, page_state, unavailable
 from helpers.dashboard import origin_of, printed_url, socket_url
 
 from aes_ros import scenario
+from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.param_files import ros_args, write_scenario
 
@@ -125,7 +126,7 @@ def real_swarm(args, domain: str, work: Path) -> dict[str, float]:
         time.sleep(5.0)  # the page and the counter settle
         cpu0 = {p: cpu_seconds(p) for p in (dashboard, bridge)}
         bytes0, t0 = counter.bytes, time.monotonic()
-        fps, draw_ms = page_rate(driver, args.seconds)
+        fps, draw_ms = page_rate(driver, args.duration)
         wall = time.monotonic() - t0
         cpu = {p: 100 * (cpu_seconds(p) - cpu0[p]) / wall for p in (dashboard, bridge)}
         kbytes = (counter.bytes - bytes0) / wall / 1e3
@@ -215,7 +216,8 @@ def fed_page(n: int, seconds: float, work: Path) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seconds", type=float, default=10.0, help="each measurement [s]")
+    parser.add_argument("--duration", type=float, default=10.0, help="each measurement [s]")
+    add_deprecated(parser, "--seconds", "--duration")
     parser.add_argument("--domain", default="96", help="the ROS_DOMAIN_ID of the runs")
     parser.add_argument("--screenshot", type=Path, default=None, help="save the 100-robot page")
     args = parser.parse_args(argv)
@@ -227,7 +229,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="aes-bench-dashboard-") as tmp:
         work = Path(tmp)
         real = real_swarm(args, args.domain, work)
-        fed = {n: fed_page(n, args.seconds, work) for n in (100, 1000)}
+        fed = {n: fed_page(n, args.duration, work) for n in (100, 1000)}
     print(f"\n{'':<44}{'value':>10}{'target':>9}")
     rows = [
         ("dashboard CPU, 100 robots [% core]", real["cpu_pct"], f"<= {TARGET_CPU_PCT:g}"),

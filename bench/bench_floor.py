@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario as scenario_mod
+from aes_ros.cli.deprecated import add_deprecated
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -194,7 +195,7 @@ def transport_us(robots: int, rate: float, seconds: float) -> dict[str, float]:
         if read.stdout.readline().strip() != "ready":
             raise RuntimeError("the reader child did not start")
         write = subprocess.Popen(
-            [*cmd, "--child", "writer", "--seconds", str(seconds)],
+            [*cmd, "--child", "writer", "--duration", str(seconds)],
             env=env, stdout=subprocess.PIPE, text=True,
         )  # fmt: skip
         out_w, _ = write.communicate(timeout=timeout)
@@ -212,21 +213,22 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--robots", type=int, default=1000)
     parser.add_argument("--rate", type=float, default=20.0, help="control rate [Hz]")
-    parser.add_argument("--seconds", type=float, default=20.0, help="measured publishing [s]")
+    parser.add_argument("--duration", type=float, default=20.0, help="measured publishing [s]")
+    add_deprecated(parser, "--seconds", "--duration")
     parser.add_argument("--child", choices=("reader", "writer"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.child == "reader":
         print(json.dumps(reader(args.robots)), flush=True)
         os._exit(0)
     if args.child == "writer":
-        print(json.dumps(writer(args.robots, args.rate, args.seconds)), flush=True)
+        print(json.dumps(writer(args.robots, args.rate, args.duration)), flush=True)
         os._exit(0)
 
     n, rate = args.robots, args.rate
     ref_before = machine_reference_us()
     control = control_us(n, rate, steps=max(20, round(20_000 / n)))
     print(f"control law of {n} robots, no ROS: {control:.1f} µs per robot-step", flush=True)
-    t = transport_us(n, rate, args.seconds)
+    t = transport_us(n, rate, args.duration)
     print(
         f"cmd_vel, {n} topics at {rate:g} Hz: publish {t['publish_us']:.1f} µs, "
         f"receive {t['receive_us']:.1f} µs per message ({t['received']} received)",

@@ -14,7 +14,7 @@ Usage::
     python bench/bench_tracking.py --out docs/perf/tracking  # both configurations, closed loop
     python bench/bench_tracking.py --quick                   # 25 robots 1280x960, no closed loop
     python bench/bench_tracking.py --robots 9 --camera-size 640x480 --arena 1.2x0.9 \\
-        --seconds 5 --quick
+        --duration 5 --quick
 
 Writes ``bench_tracking.txt`` and ``bench_tracking.csv`` to ``--out`` (default
 ``out/bench_tracking``). Run it in a ROS domain of its own.
@@ -371,11 +371,12 @@ def main(argv: list[str] | None = None) -> int:
     add_deprecated(parser, "--camera", "--camera-size")
     parser.add_argument("--arena", type=_list(_pair(float)), help="WxH [m] each, e.g. 2.0x1.5")
     parser.add_argument(
-        "--seconds",
+        "--duration",
         type=float,
         default=None,
         help="wall seconds measured per configuration (default 20, quick 8)",
     )
+    add_deprecated(parser, "--seconds", "--duration")
     parser.add_argument(
         "--warmup",
         type=float,
@@ -395,14 +396,18 @@ def main(argv: list[str] | None = None) -> int:
         help="the closed-loop comparison (default: on, off with --quick)",
     )
     parser.add_argument("--closed-loop-robots", type=int, default=25)
-    parser.add_argument("--closed-loop-seconds", type=float, default=30.0)
+    parser.add_argument(
+        "--closed-loop-duration", type=float, default=30.0,
+        help="sim seconds of each closed-loop launch (default 30)",
+    )  # fmt: skip
+    add_deprecated(parser, "--closed-loop-seconds", "--closed-loop-duration")
     parser.add_argument(
         "--closed-loop-runs", type=int, default=3,
         help="tracked runs of the closed loop (exact runs: as many, at least 2)",
     )  # fmt: skip
     parser.add_argument("--out", type=Path, default=Path("out/bench_tracking"))
     args = parser.parse_args(argv)  # fmt: skip
-    window = args.seconds if args.seconds is not None else (8.0 if args.quick else 20.0)
+    window = args.duration if args.duration is not None else (8.0 if args.quick else 20.0)
     warmup = args.warmup if args.warmup is not None else (2.0 if args.quick else 5.0)
     closed = args.closed_loop if args.closed_loop is not None else not args.quick
     args.out.mkdir(parents=True, exist_ok=True)
@@ -424,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:
         size = {c[0]: c for c in CONFIGS}.get(args.closed_loop_robots, CONFIGS[0])
         try:
             rows.append(closed_loop(args.closed_loop_robots, size[2], size[1], args.seed,
-                                    args.closed_loop_seconds, args.closed_loop_runs))  # fmt: skip
+                                    args.closed_loop_duration, args.closed_loop_runs))  # fmt: skip
         except Exception as exc:
             say(f"closed loop: FAILED: {exc}")
     ref_after = machine_reference_us()

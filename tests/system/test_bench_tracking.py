@@ -30,7 +30,7 @@ def bench() -> Iterator[ModuleType]:
 def test_quick_run_tracks_every_robot(ros_env, tmp_path) -> None:
     out = subprocess.run(
         [sys.executable, str(BENCH), "--quick", "--robots", "9", "--camera-size", "640x480",
-         "--arena", "1.2x0.9", "--seconds", "4", "--warmup", "1", "--out", str(tmp_path)],
+         "--arena", "1.2x0.9", "--duration", "4", "--warmup", "1", "--out", str(tmp_path)],
         env=ros_env, capture_output=True, text=True, timeout=150,
     )  # fmt: skip
     assert out.returncode == 0, out.stdout[-3000:] + out.stderr[-3000:]

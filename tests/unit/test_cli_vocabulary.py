@@ -27,7 +27,7 @@ SCRIPTS = sorted(
     if p.name != "naive_swarm.py" and "argparse.ArgumentParser(" in p.read_text()
 )
 #: Old spellings of an idea that has one name now.
-OLD = {"--mc", "--eval-runs", "--repeat", "--repeats"}
+OLD = {"--mc", "--eval-runs", "--repeat", "--repeats", "--seconds", "--closed-loop-seconds"}
 
 
 def subcommands() -> dict[str, argparse.ArgumentParser]:
@@ -143,8 +143,13 @@ def test_an_old_spelling_still_works_with_a_warning(
         ("bench_faults.py", "--repeats", "--runs", "runs"),
         ("bench_ros.py", "--repeat", "--runs", "runs"),
         ("compare_optimizers.py", "--mc", "--runs", "runs"),
+        ("bench_dashboard.py", "--seconds", "--duration", "duration"),
+        ("bench_floor.py", "--seconds", "--duration", "duration"),
+        ("bench_tracking.py", "--seconds", "--duration", "duration"),
+        ("bench_tracking.py", "--closed-loop-seconds", "--closed-loop-duration",
+         "closed_loop_duration"),
     ],
-)
+)  # fmt: skip
 def test_a_bench_scripts_old_spelling_still_works_with_a_warning(
     script: str, old: str, new: str, dest: str, monkeypatch, capsys
 ) -> None:
