@@ -42,6 +42,7 @@ from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import LATCHED, LATEST_COMMAND, SENSOR, STREAM_WRITER
 from aes_ros.ros.spin import run_node_process
 from aes_ros.world_state import WorldState
+from sim_bridge.ir_sensors import IrSensors
 from sim_bridge.lockstep import LockstepBarrier
 from sim_bridge.loop_stats import ControlLoopStats
 from sim_bridge.parameters import declare_bridge_parameters
@@ -104,7 +105,9 @@ class SimBridgeNode(Node):
         Open the pybullet GUI. Read-only.
 
     Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
-    index = robot id), ``/mona_<i>/odom``; subscribes ``/mona_<i>/cmd_vel``. With
+    index = robot id), ``/mona_<i>/odom``, ``/mona_<i>/ir_<k>`` (IR sensors; their
+    ``ir_*`` parameters: :class:`sim_bridge.ir_sensors.IrSensors`); subscribes
+    ``/mona_<i>/cmd_vel``. With
     the scenario's perception error on (``perception_*``, :mod:`aes_ros.perception`),
     ``/swarm/poses`` is what a tracker would show the robots
     (:mod:`sim_bridge.perceived_poses`) and the exact poses go to
@@ -201,6 +204,7 @@ class SimBridgeNode(Node):
         self.create_service(Trigger, names.SIM_RESET, self.on_reset)
         self.create_service(SetBool, names.SIM_PAUSE, self.on_pause)
         self.create_service(Trigger, names.SIM_STATS, self.on_stats)
+        self.ir = IrSensors(self, self.world, get("seed").value)  # /mona_<i>/ir_<k>
         self._build_messages()
         self._update_odom_listeners()
         self.add_post_set_parameters_callback(self.on_parameters_set)
@@ -452,6 +456,7 @@ class SimBridgeNode(Node):
             for i, (x, y), (qz, qw), fwd, side, w in rows:
                 data = self.odom_encoders[i].encode(sec, nanosec, x, y, qz, qw, fwd, side, w)
                 self.odom_pubs[i].publish(data)
+        self.ir.publish(self.stamp)
         self.last_publish = time.monotonic()
 
     def destroy_node(self) -> None:

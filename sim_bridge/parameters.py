@@ -7,6 +7,7 @@ from rclpy.node import Node
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
+from sim_bridge.ir_sensors import declare_ir_parameters
 from sim_bridge.lockstep import DEFAULT_TIMEOUT
 
 
@@ -100,6 +101,7 @@ def declare_bridge_parameters(node: Node) -> None:
     node.declare_parameter(
         "gui", False, rp.bool_descriptor("open the pybullet GUI (read at start)", read_only=True)
     )
+    declare_ir_parameters(node)
     reason = rp.choice_error("mode", node.get_parameter("mode").value, names.MODES)
     if reason is not None:
         raise ParameterError(reason)
