@@ -90,12 +90,14 @@ def ray_distances(
         centres[i, 0] = positions[i, 0] + axle_offset * math.cos(headings[i])
         centres[i, 1] = positions[i, 1] + axle_offset * math.sin(headings[i])
     # Another body can only be seen if its centre is this close to this one's.
-    reach = 2.0 * body_radius + max_range
+    reach2 = (2.0 * body_radius + max_range) ** 2
+    ray = np.empty((k, 4))  # sensor point x, y and direction x, y of each sensor
     for i in range(n):
         cx, cy = centres[i, 0], centres[i, 1]
         for a in range(k):
             ux, uy = math.cos(headings[i] + angles[a]), math.sin(headings[i] + angles[a])
             sx, sy = cx + body_radius * ux, cy + body_radius * uy
+            ray[a, 0], ray[a, 1], ray[a, 2], ray[a, 3] = sx, sy, ux, uy
             best = max_range
             if len(walls) == 4:
                 x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
@@ -110,11 +112,6 @@ def ray_distances(
                         best = min(best, (y1 - sy) / uy)
                     elif uy < 0.0:
                         best = min(best, (y0 - sy) / uy)
-            for j in range(n):
-                if j != i and abs(centres[j, 0] - cx) < reach and abs(centres[j, 1] - cy) < reach:
-                    best = min(
-                        best, _disc_hit(sx, sy, ux, uy, centres[j, 0], centres[j, 1], body_radius)
-                    )
             for m in range(len(circles)):
                 best = min(
                     best, _disc_hit(sx, sy, ux, uy, circles[m, 0], circles[m, 1], circles[m, 2])
@@ -125,6 +122,21 @@ def ray_distances(
                     _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
                 )
             out[i, a] = best
+        for j in range(n):
+            dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
+            if j == i or dx * dx + dy * dy >= reach2:
+                continue
+            for a in range(k):
+                hit = _disc_hit(
+                    ray[a, 0],
+                    ray[a, 1],
+                    ray[a, 2],
+                    ray[a, 3],
+                    centres[j, 0],
+                    centres[j, 1],
+                    body_radius,
+                )
+                out[i, a] = min(out[i, a], hit)
 
 
 @njit(cache=True)
