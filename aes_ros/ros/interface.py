@@ -184,6 +184,8 @@ TOPICS: tuple[Endpoint, ...] = (
              "real robot i's pose and twist integrated from its wheel speeds"),
     Endpoint(f"/mona_<i>/{IR}_<k>", "sensor_msgs/msg/Range", "mona driver", "you",
              "real robot i's IR sensor k = 0…4 (0°, +37°, −37°, +67°, −67°)"),
+    Endpoint(f"/mona_<i>/{IR}_<k>", "sensor_msgs/msg/Range", "bridge", "robot nodes (w_o > 0)",
+             "simulated robot i's IR sensor k, as the driver's (bridge parameters ir_*)"),
     Endpoint(f"/mona_<i>/{BATTERY}", "sensor_msgs/msg/BatteryState", "mona driver", "you",
              "real robot i's battery voltage"),
     Endpoint(f"/mona_<i>/{WHEEL_CMD}", "geometry_msgs/msg/Twist", "firmware_loop",
