@@ -30,6 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
+from aes_ros.contacts import resolve_contacts
 from aes_ros.metrics import FORCE_EPS
 
 #: Layout of the ``params`` vector passed to :func:`advance`.
@@ -38,7 +39,7 @@ PARAM_ORDER = (
     "dir_x", "dir_y", "omega", "center_x", "center_y", "use_centroid", "noise",
     "clip", "max_linear_speed", "max_angular_speed",
     "perception_sigma", "perception_miss", "perception_delay_steps", "perception_period_steps",
-    "noise_dt",
+    "noise_dt", "contacts", "body_radius", "axle_offset", "contact_iterations",
 )  # fmt: skip
 
 
@@ -232,6 +233,8 @@ def advance(
     seen: np.ndarray,
     ring: np.ndarray,
     camera_state: np.ndarray,
+    bodies: tuple[np.ndarray, np.ndarray, np.ndarray],
+    contact_out: np.ndarray,
 ) -> None:
     """Advance every run by ``n_steps`` Euler steps in place.
 
@@ -256,12 +259,17 @@ def advance(
     camera_state : (B, 2, 4) uint64, each run's perception generators
         (:func:`aes_ros.perception.perception_state`), advanced by the draws of the
         camera updates among these steps (:func:`camera_draws`, N robot-frames each).
+    bodies : walls (4,) or (0,), circles (M, 3), boxes (L, 4) [m] for the contacts.
+    contact_out : (B, C, 2) out, with ``contacts`` on: the overlaps resolved after each
+        step and the smallest centre distance [m] after it
+        (:func:`aes_ros.contacts.resolve_contacts`); untouched with contacts off.
     """
     B, N = headings.shape
     K = neighbors.shape[1]
     record = pos_hist.shape[0] > 0
     perceive = seen.shape[1] > 0
     ends, spring_rest, mutual = springs
+    walls, circles, boxes = bodies
     two_pi = 2.0 * math.pi
     for b in prange(B):
         pb = params[b]
@@ -279,6 +287,8 @@ def advance(
         root_dt = math.sqrt(pb[23])  # Δt of the noise term, floored (model.noise_dt)
         amp_r = d_r / root_dt
         amp_t = d_theta / root_dt
+        touching = pb[24] != 0.0
+        radius, axle_offset, iterations = pb[25], pb[26], int(pb[27])
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):
@@ -417,3 +427,9 @@ def advance(
             metrics[b, step, 4] = cy
             pos[:, :] = new_pos
             head[:] = new_head
+            if touching:
+                found, closest = resolve_contacts(
+                    pos, head, radius, axle_offset, walls, circles, boxes, iterations
+                )
+                contact_out[b, step, 0] = found
+                contact_out[b, step, 1] = closest

@@ -12,6 +12,10 @@ pair of generators per run (:func:`aes_ros.perception.perception_state`), so the
 first one draws exactly what it drew before perception existed and batching still
 changes nothing.
 
+With ``contacts`` on, every Euler step ends with :func:`aes_ros.contacts.resolve_contacts`
+(bodies, walls and obstacles) in both backends; off, the robots pass through everything
+and the outputs are those of the simulator before contacts existed.
+
 Two backends compute the same thing: ``"numba"`` (default; the fused kernel in
 :mod:`aes_ros.kernel`, runs spread over the cores) and ``"numpy"`` (the plain
 reference path built from :mod:`aes_ros.model` and :mod:`aes_ros.metrics`).
@@ -27,6 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import formations, metrics
+from aes_ros.contacts import ITERATIONS, contacts_over_time, resolve_contacts
 from aes_ros.kernel import PARAM_ORDER, advance, spring_list
 from aes_ros.model import (
     Gains,
@@ -39,6 +44,8 @@ from aes_ros.model import (
     total_forces,
     unicycle_step,
 )
+from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.obstacles import contact_arrays
 from aes_ros.perception import (
     PerceptionSettings,
     camera_period_steps,
@@ -57,6 +64,9 @@ CHUNK = 32
 
 METRIC_NAMES = ("alignment", "heading_order", "total_force", "centroid_x", "centroid_y")
 
+#: The bodies of :mod:`aes_ros.contacts`: Mona's body radius and axle offset [m].
+BODY = MonaGeometry()
+
 
 @dataclass
 class SimResult:
@@ -70,6 +80,11 @@ class SimResult:
     neighbors, rest_lengths : the sheet, (N, K).
     final_positions : (B, N, 2) [m] and final_headings : (B, N) [rad], the state at
         T·Δt (kept also when not recorded).
+    contacts : (B, T+1) bodies in contact at each instant: with ``contacts`` on, the
+        overlaps resolved by the step that led to it; off, the overlaps in the state
+        (:func:`aes_ros.contacts.measure_contacts`; at 0 and T only when not recorded).
+    min_distance : (B, T+1) smallest centre distance between two bodies [m], the
+        same way (NaN where not known).
     """
 
     times: np.ndarray
@@ -80,10 +95,17 @@ class SimResult:
     rest_lengths: np.ndarray
     final_positions: np.ndarray | None = None
     final_headings: np.ndarray | None = None
+    contacts: np.ndarray | None = None
+    min_distance: np.ndarray | None = None
 
     def metric(self, name: str) -> np.ndarray:
         """One metric, (B, T+1)."""
         return self.metrics[..., METRIC_NAMES.index(name)]
+
+    @property
+    def contacts_per_s(self) -> np.ndarray:
+        """Contacts per second of sim time over the run, (B,) [1/s]."""
+        return self.contacts[:, 1:].sum(axis=-1) / max(self.times[-1], self.times[1])
 
     @property
     def centroid(self) -> np.ndarray:
@@ -150,6 +172,7 @@ def simulate(
     stop_at = stop_at.astype(np.int64)
 
     out_metrics = np.empty((B, T + 1, 5))
+    out_bodies = np.full((B, T + 1, 2), np.nan)  # contacts, min centre distance
     pos_hist = np.empty((B, T + 1, N, 2)) if record else None
     head_hist = np.empty((B, T + 1, N)) if record else None
     if backend not in ("numba", "numpy"):
@@ -168,6 +191,7 @@ def simulate(
     perception = PerceptionSettings.from_mapping(scenario.values)
     perceiving = perception.enabled(scenario.dt)
     bar = tqdm(total=T * len(batches), unit="step", disable=not progress, leave=False)
+    start_state = (pos.copy(), head.copy())
     for idx, sim in batches:
         p, h = pos[idx], head[idx]
         camera = (
@@ -176,8 +200,11 @@ def simulate(
         chunks = _NoiseChunks([rngs[i] for i in idx], N, noise)
         for start in range(0, T, CHUNK):
             n = min(CHUNK, T - start)
-            m, ph, hh = sim.advance(p, h, *chunks.next(start, n), n, stop_at[idx], start, camera)
+            m, ph, hh, bodies = sim.advance(
+                p, h, *chunks.next(start, n), n, stop_at[idx], start, camera
+            )
             out_metrics[idx, start : start + n] = m
+            out_bodies[idx, start + 1 : start + n + 1] = bodies
             if record:
                 pos_hist[idx, start : start + n] = ph
                 head_hist[idx, start : start + n] = hh
@@ -190,8 +217,36 @@ def simulate(
         )
     if record:
         pos_hist[:, T], head_hist[:, T] = pos, head
+    contacts, closest = _body_metrics(
+        scenario, out_bodies, pos_hist, head_hist, (*start_state, pos, head)
+    )
     times = np.arange(T + 1) * scenario.dt
-    return SimResult(times, out_metrics, pos_hist, head_hist, neighbors, rest, pos, head)
+    return SimResult(
+        times, out_metrics, pos_hist, head_hist, neighbors, rest, pos, head, contacts, closest
+    )
+
+
+def _body_metrics(
+    scenario: Scenario,
+    bodies: np.ndarray,
+    pos_hist: np.ndarray | None,
+    head_hist: np.ndarray | None,
+    states: tuple[np.ndarray, ...],
+) -> tuple[np.ndarray, np.ndarray]:
+    """Contacts and smallest centre distance (B, T+1) of a run: from the steps with
+    contacts on, else measured in the recorded states (or the first and last)."""
+    geometry = contact_arrays(scenario.values)
+    measure = BODY.body_radius, BODY.axle_offset, *geometry
+    contacts, closest = bodies[..., 0], bodies[..., 1]
+    if scenario.contacts:
+        contacts[:, 0], closest[:, 0] = contacts_over_time(*states[:2], *measure)
+        contacts[:, 0] = 0  # no step led to the first instant
+    elif pos_hist is not None:
+        contacts[...], closest[...] = contacts_over_time(pos_hist, head_hist, *measure)
+    else:
+        for t, (p, h) in ((0, states[:2]), (-1, states[2:])):
+            contacts[:, t], closest[:, t] = contacts_over_time(p, h, *measure)
+    return contacts.astype(np.int64), closest
 
 
 def failure_steps(
@@ -313,6 +368,7 @@ class _NumpyStepper:
         self.scenario, self.gains = scenario, gains
         self.neighbors, self.rest = neighbors, rest
         self.noise, self.record = noise, record
+        self.bodies = contact_arrays(scenario.values)
 
     def advance(
         self,
@@ -325,7 +381,7 @@ class _NumpyStepper:
         stop_at: np.ndarray,
         first_step: int,
         camera: _Camera | None = None,
-    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
         sc = self.scenario
         seen_pos, seen_head = pos, head
         if camera is not None:
@@ -339,6 +395,7 @@ class _NumpyStepper:
             camera.draw(first_step, n)
         refresh = 0
         m = np.empty((len(head), n, 5))
+        bodies = np.full((len(head), n, 2), np.nan)
         ph = np.empty((len(head), n, *pos.shape[1:])) if self.record else None
         hh = np.empty((len(head), n, head.shape[1])) if self.record else None
         for s in range(n):
@@ -358,7 +415,13 @@ class _NumpyStepper:
             moving = first_step + s < stop_at
             u, w = np.where(moving, u, 0.0), np.where(moving, w, 0.0)
             pos[...], head[...] = unicycle_step(pos, head, u, w, sc.dt)
-        return m, ph, hh
+            if sc.contacts:
+                for b in range(len(head)):
+                    bodies[b, s] = resolve_contacts(
+                        pos[b], head[b], BODY.body_radius, BODY.axle_offset, *self.bodies,
+                        ITERATIONS,
+                    )  # fmt: skip
+        return m, ph, hh, bodies
 
     def _see(
         self, camera: _Camera, pos: np.ndarray, head: np.ndarray, step: int, refresh: int
@@ -411,6 +474,10 @@ class _NumbaStepper:
             "perception_delay_steps": delay_steps(scenario.perception_delay, scenario.dt),
             "perception_period_steps": camera_period_steps(scenario.perception_rate, scenario.dt),
             "noise_dt": noise_dt(scenario.dt),
+            "contacts": float(scenario.contacts),
+            "body_radius": BODY.body_radius,
+            "axle_offset": BODY.axle_offset,
+            "contact_iterations": ITERATIONS,
         }
         rows = ({**shared, **asdict(g)} for g in run_gains)  # asdict deep-copies: once a run
         self.params = np.array([[row[name] for name in PARAM_ORDER] for row in rows], dtype=float)
@@ -421,6 +488,8 @@ class _NumbaStepper:
         B = len(run_gains)
         self.seen, self.ring = np.empty((B, 0, 4)), np.empty((B, 0, 0, 4))
         self.camera_state = np.empty((B, 0, 4), np.uint64)
+        self.bodies = contact_arrays(scenario.values)
+        self.contact_out = np.full((B, CHUNK, 2), np.nan)
 
     def advance(
         self,
@@ -433,7 +502,7 @@ class _NumbaStepper:
         stop_at: np.ndarray,
         first_step: int,
         camera: _Camera | None = None,
-    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, np.ndarray]:
         B, N = head.shape
         if camera is not None:
             if first_step == 0:  # (x, y, cos θ, sin θ): the initial state everywhere
@@ -447,8 +516,9 @@ class _NumbaStepper:
         advance(
             pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh,
             np.ascontiguousarray(stop_at), first_step, self.springs, self.seen, self.ring,
-            self.camera_state,
+            self.camera_state, self.bodies, self.contact_out,
         )  # fmt: skip
+        bodies = self.contact_out[:, :n].copy()
         if not self.record:
-            return m[:, :n], None, None
-        return m[:, :n], ph[:, :n], hh[:, :n]
+            return m[:, :n], None, None, bodies
+        return m[:, :n], ph[:, :n], hh[:, :n], bodies
