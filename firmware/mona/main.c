@@ -73,7 +73,7 @@ static uint32_t now_ms(void) {
 static void clock_init(void) {
     TCCR0A = _BV(WGM01);            /* CTC */
     TCCR0B = _BV(CS01) | _BV(CS00); /* clk/64 */
-    OCR0A = 249;                    /* 16 MHz / 64 / 250 = 1 kHz */
+    OCR0A = F_CPU / 64 / 1000 - 1;  /* 1 kHz: 124 at 8 MHz, 249 at 16 MHz */
     TIMSK0 = _BV(OCIE0A);
 }
 

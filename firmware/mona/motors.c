@@ -1,4 +1,4 @@
-/* Wheel motors: Timer1 fast PWM 8-bit at 976 Hz on OC1A/OC1B, direction on PD6/PD5. */
+/* Wheel motors: Timer1 fast PWM 8-bit (488 Hz at 8 MHz) on OC1A/OC1B, direction on PD6/PD5. */
 #include "motors.h"
 
 #include <avr/io.h>
@@ -11,7 +11,7 @@ void motors_init(void) {
     MOTOR_DIR_PORT &= (uint8_t)~(_BV(MOTOR_LEFT_DIR_BIT) | _BV(MOTOR_RIGHT_DIR_BIT));
     MOTOR_DIR_DDR |= _BV(MOTOR_LEFT_DIR_BIT) | _BV(MOTOR_RIGHT_DIR_BIT);
     TCCR1A = _BV(WGM10);                           /* fast PWM, 8-bit (mode 5) */
-    TCCR1B = _BV(WGM12) | _BV(CS11) | _BV(CS10);   /* clk/64: 16 MHz / 64 / 256 */
+    TCCR1B = _BV(WGM12) | _BV(CS11) | _BV(CS10);   /* clk/64: F_CPU / 64 / 256 */
     motors_off();
 }
 

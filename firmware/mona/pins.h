@@ -1,13 +1,15 @@
 /*
- * Pin map of the original Mona (ATmega328P, 16 MHz).
+ * Pin map of the original Mona (ATmega328P).
  *
- * Source: the original Mona's "basic platform test" Arduino sketch published by
- * MonaRobot (Motor_right_PWM = 10, Motor_right_direction = 5, Motor_left_PWM = 9,
- * Motor_left_direction = 6, "0 Forward - 1 Reverse", IR_enable = 4, IR sensors on
- * A3 right, A2 right-front, A1 front, A0 left-front, A7 left, LEDs on 13 and 12), and
- * bird43/MonaMk2, MONA.h (Ben Bird, a Mona co-author) for the battery on A6.
- * docs/firmware.md lists them; check them against your board's schematic before
- * flashing.
+ * Source: github.com/Farshad-Arvin/Mona-Platform (MonaRobot's "basic functions and test
+ * code in Arduino", www.monarobot.uk), the "pin config for basic platform test" of
+ * Mona-Test.ino and Mona-Motion-Control.ino: Motor_right_PWM = 10,
+ * Motor_right_direction = 5, Motor_left_PWM = 9, Motor_left_direction = 6
+ * ("0 Forward - 1 Reverse"), LED1 = 13 (top), LED2 = 12, IR_enable = 4, IR on A3 right,
+ * A2 right-front, A1 front, A0 left-front, A7 left; the battery on A6 from
+ * bird43/MonaMk2, MONA.h (Ben Bird, a Mona co-author). docs/firmware.md lists them with
+ * the clock (8 MHz, from the same README); check them against your board
+ * before flashing.
  */
 #ifndef MONA_PINS_H
 #define MONA_PINS_H

@@ -43,7 +43,9 @@
 #include <sim_irq.h>
 
 #define MCU_NAME "atmega328p"
-#define MCU_HZ 16000000UL
+#ifndef MCU_HZ /* the firmware's F_CPU (firmware/Makefile) */
+#define MCU_HZ 8000000UL
+#endif
 #define VCC_MV 5000
 /* ATmega328P data-space addresses of the registers the motors are read from. */
 #define REG_TCCR1A 0x80
