@@ -92,9 +92,9 @@ def test_on_adds_the_repulsion_and_a_batch_equals_one_by_one(n: int) -> None:
             np.testing.assert_array_equal(single.force, without)
 
 
-def drive_at_wall(w_o: float, heading: float) -> tuple[float, float]:
+def drive_at_wall(w_o: float, heading: float) -> tuple[float, float, float]:
     """One robot driven (v_d = +x) at a wall at x = 0.5 m, no noise, its IR ranges cast
-    every step; the closest its body came to the wall [m] and its final x [m]."""
+    every step; the closest its body came to the wall [m], its final x [m] and heading."""
     geometry = MonaGeometry()
     walls = np.array([-5.0, 0.5, -5.0, 5.0])
     gains = Gains(d_r=0.0, d_theta=0.0, w_o=w_o)
@@ -114,12 +114,14 @@ def drive_at_wall(w_o: float, heading: float) -> tuple[float, float]:
         position, theta = positions[0], float(headings[0])
         rim = position[0] + geometry.axle_offset * np.cos(theta) + geometry.body_radius
         closest = min(closest, 0.5 - rim)
-    return closest, float(position[0])
+    return closest, float(position[0]), theta
 
 
 @pytest.mark.parametrize("heading", [0.0, 0.4, -0.9])
 def test_a_robot_driven_at_a_wall_stays_off_it_only_with_the_term(heading: float) -> None:
-    closest, _ = drive_at_wall(3.0, heading)
+    closest, _, theta = drive_at_wall(3.0, heading)
     assert 0.0 < closest < AVOIDANCE_RANGE  # it came near, saw the wall, kept off
-    closest, x = drive_at_wall(0.0, heading)
+    if heading != 0.0:  # met obliquely, it turned along the wall
+        assert abs(np.cos(theta)) < 0.05
+    closest, x, _ = drive_at_wall(0.0, heading)
     assert closest < 0.0 and x > 0.5  # without: straight through (no contacts here)
