@@ -16,7 +16,10 @@ from typing import IO, Any
 import numpy as np
 
 from aes_ros import metrics
+from aes_ros.contacts import contacts_over_time
 from aes_ros.model import total_forces
+from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.obstacles import contact_arrays
 from aes_ros.scenario import Scenario
 from aes_ros.snapshot_view import MAX_PLOT_SAMPLES, plot_every
 from aes_ros.trajectory import Trajectory
@@ -24,10 +27,14 @@ from aes_ros.trajectory_file import TrajectoryFile
 
 CSV_COLUMNS = (
     "t", "alignment", "heading_order", "total_force", "centroid_x", "centroid_y",
-    "angular_velocity",
+    "angular_velocity", "contacts_per_s", "min_centre_distance",
 )  # fmt: skip
+#: The columns of files written before the contact columns; still read (those as NaN).
+OLD_COLUMNS = CSV_COLUMNS[:7]
 #: Bytes of metrics.csv parsed at once (some 10^4 rows).
 CSV_BLOCK_BYTES = 1024 * 1024
+#: Bodies of the contact columns (:mod:`aes_ros.contacts`).
+BODY = MonaGeometry()
 
 
 def metrics_table(
@@ -39,6 +46,11 @@ def metrics_table(
     Leading run axes are averaged. ψ, ψ_heading and F use the noise-free force
     (E4) with the scenario's gains and command. ``angular_velocity`` [rad/s] at
     sample k is the rigid rotation from k-1 to k (at k = 0: from 0 to 1).
+    ``contacts_per_s`` [1/s] is the number of bodies in contact at sample k (robot
+    pairs, robots at a wall or an obstacle, overlapping or touching:
+    :func:`aes_ros.contacts.measure_contacts`) over the interval that led to it, so its
+    mean over a run is the run's contacts per second; ``min_centre_distance`` [m] is the
+    smallest distance between two body centres, the least over the runs.
 
     Returns a dict of (T,) arrays keyed by :data:`CSV_COLUMNS`.
     """
@@ -48,6 +60,11 @@ def metrics_table(
     omega = np.concatenate([omega[..., :1], omega], axis=-1)
     centroid = positions.mean(axis=-2)
     runs = tuple(range(positions.ndim - 3))
+    contacts, closest = contacts_over_time(
+        positions, headings, BODY.body_radius, BODY.axle_offset, *contact_arrays(scenario.values)
+    )
+    steps = np.diff(times)
+    steps = np.concatenate([steps[:1], steps]) if len(steps) else np.ones(len(times))
     table = {
         "t": times,
         "alignment": metrics.alignment_order(forces, headings),
@@ -56,8 +73,10 @@ def metrics_table(
         "centroid_x": centroid[..., 0],
         "centroid_y": centroid[..., 1],
         "angular_velocity": omega,
+        "contacts_per_s": contacts / steps,
     }
-    return {k: (v if k == "t" else v.mean(axis=runs)) for k, v in table.items()}
+    table = {k: (v if k == "t" else v.mean(axis=runs)) for k, v in table.items()}
+    return {**table, "min_centre_distance": closest.min(axis=runs)}
 
 
 def metrics_rows(
@@ -163,7 +182,7 @@ def read_metrics_csv(path: Path, max_rows: int = MAX_PLOT_SAMPLES) -> MetricsDig
     omega_sum, first, last = 0.0, None, None
     with open(path, "rb") as fh:
         header = fh.readline().decode().strip().split(",")
-        if tuple(header) != CSV_COLUMNS:
+        if tuple(header) not in (CSV_COLUMNS, OLD_COLUMNS):
             raise ValueError(f"{path}: columns {header}, expected {list(CSV_COLUMNS)}")
         start, rest = 0, b""
         while start < n_rows and (data := fh.read(CSV_BLOCK_BYTES)):
@@ -172,7 +191,7 @@ def read_metrics_csv(path: Path, max_rows: int = MAX_PLOT_SAMPLES) -> MetricsDig
             data, rest = data[:cut], data[cut:]
             if not data:
                 continue
-            block = _parse_rows(data, path)
+            block = _parse_rows(data, path, len(header))
             index = np.arange(start, start + len(block))
             first = block[0] if first is None else first
             last = block[-1]
@@ -181,6 +200,10 @@ def read_metrics_csv(path: Path, max_rows: int = MAX_PLOT_SAMPLES) -> MetricsDig
             omega_sum += float(block[index >= tail, CSV_COLUMNS.index("angular_velocity")].sum())
             start += len(block)
     rows = np.concatenate(kept)
+    if len(header) < len(CSV_COLUMNS):  # a file from before the contact columns
+        pad = np.full(len(CSV_COLUMNS) - len(header), np.nan)
+        rows = np.hstack([rows, np.tile(pad, (len(rows), 1))])
+        first, last = np.concatenate([first, pad]), np.concatenate([last, pad])
     return MetricsDigest(
         rows={c: rows[:, i] for i, c in enumerate(CSV_COLUMNS)},
         n_rows=n_rows,
@@ -190,11 +213,11 @@ def read_metrics_csv(path: Path, max_rows: int = MAX_PLOT_SAMPLES) -> MetricsDig
     )
 
 
-def _parse_rows(lines: bytes, path: Path) -> np.ndarray:
-    """Whole ``metrics.csv`` lines as a (rows, 7) array (numpy's C parser: loadtxt
+def _parse_rows(lines: bytes, path: Path, columns: int) -> np.ndarray:
+    """Whole ``metrics.csv`` lines as a (rows, columns) array (numpy's C parser: loadtxt
     is as fast, but four times slower under tracemalloc, which the tests use)."""
     n_lines = lines.count(b"\n")
     values = np.fromstring(lines[:-1].replace(b"\n", b",").decode(), sep=",")
-    if values.size != n_lines * len(CSV_COLUMNS):
-        raise ValueError(f"{path}: a row without {len(CSV_COLUMNS)} numbers")
-    return values.reshape(n_lines, len(CSV_COLUMNS))
+    if values.size != n_lines * columns:
+        raise ValueError(f"{path}: a row without {columns} numbers")
+    return values.reshape(n_lines, columns)

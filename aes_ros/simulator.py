@@ -31,7 +31,9 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import formations, metrics
+from aes_ros.avoidance import avoidance_force
 from aes_ros.contacts import ITERATIONS, contacts_over_time, resolve_contacts
+from aes_ros.ir import ir_ranges
 from aes_ros.kernel import PARAM_ORDER, advance, spring_list
 from aes_ros.model import (
     Gains,
@@ -82,7 +84,8 @@ class SimResult:
         T·Δt (kept also when not recorded).
     contacts : (B, T+1) bodies in contact at each instant: with ``contacts`` on, the
         overlaps resolved by the step that led to it; off, the overlaps in the state
-        (:func:`aes_ros.contacts.measure_contacts`; at 0 and T only when not recorded).
+        (:func:`aes_ros.contacts.measure_contacts`; at 0 and T only when not recorded,
+        NaN elsewhere).
     min_distance : (B, T+1) smallest centre distance between two bodies [m], the
         same way (NaN where not known).
     """
@@ -246,7 +249,7 @@ def _body_metrics(
     else:
         for t, (p, h) in ((0, states[:2]), (-1, states[2:])):
             contacts[:, t], closest[:, t] = contacts_over_time(p, h, *measure)
-    return contacts.astype(np.int64), closest
+    return contacts, closest
 
 
 def failure_steps(
@@ -408,6 +411,8 @@ class _NumpyStepper:
                 if step % camera.period == 0:
                     refresh += 1
             forces = total_forces(seen_pos, self.neighbors, self.rest, self.gains, sc.command)
+            if self.gains.w_o > 0.0:  # avoidance: each robot's own IR sensors, true state
+                forces = forces + self._avoidance(pos, head)
             noise = (xi_x[:, s], xi_y[:, s], xi_theta[:, s]) if self.noise else None
             u, w = motion_commands(forces, seen_head, self.gains, sc.dt, noise)
             if sc.clip:
@@ -422,6 +427,15 @@ class _NumpyStepper:
                         ITERATIONS,
                     )  # fmt: skip
         return m, ph, hh, bodies
+
+    def _avoidance(self, pos: np.ndarray, head: np.ndarray) -> np.ndarray:
+        """The IR repulsion f_o (B, N, 2) of every robot, from exact ray distances."""
+        walls, circles, boxes = self.bodies
+        ranges = np.stack(
+            [ir_ranges(p, h, geometry=BODY, walls=walls, circles=circles, boxes=boxes)
+             for p, h in zip(pos, head, strict=True)]
+        )  # fmt: skip
+        return avoidance_force(ranges, head, self.gains.w_o)
 
     def _see(
         self, camera: _Camera, pos: np.ndarray, head: np.ndarray, step: int, refresh: int

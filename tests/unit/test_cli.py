@@ -55,7 +55,7 @@ def test_simulate_writes_every_output(tmp_path: Path, aes_swarm) -> None:
         rows = list(csv.DictReader(fh))
     assert list(rows[0]) == [
         "t", "alignment", "heading_order", "total_force", "centroid_x", "centroid_y",
-        "angular_velocity",
+        "angular_velocity", "contacts_per_s", "min_centre_distance",
     ]  # fmt: skip
     assert len(rows) == 101 and float(rows[-1]["t"]) == pytest.approx(5.0)
     assert float(rows[-1]["centroid_x"]) < float(rows[0]["centroid_x"])  # moving west
