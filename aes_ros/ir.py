@@ -65,6 +65,32 @@ def _box_hit(
     return near if near <= far else math.inf
 
 
+@njit(inline="always")
+def _cell_grid(
+    centres: np.ndarray, cell: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
+    """Bodies sorted by square cell of side ``cell`` (wider when they are spread over more
+    than about 8 N cells): (order, start of each cell in order, each body's cell, nx, ny)."""
+    n = len(centres)
+    x0, y0 = centres[:, 0].min(), centres[:, 1].min()
+    w, h = centres[:, 0].max() - x0, centres[:, 1].max() - y0
+    side = max(cell, math.sqrt(w * h / (4.0 * n + 16.0)), (w + h) / (4.0 * n + 16.0))
+    nx, ny = int(w / side) + 1, int(h / side) + 1
+    of = np.empty(n, dtype=np.int64)
+    start = np.zeros(nx * ny + 1, dtype=np.int64)
+    for i in range(n):
+        of[i] = int((centres[i, 0] - x0) / side) * ny + int((centres[i, 1] - y0) / side)
+        start[of[i] + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    order = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        order[fill[of[i]]] = i
+        fill[of[i]] += 1
+    return order, start, of, nx, ny
+
+
 @njit(cache=True)
 def ray_distances(
     positions: np.ndarray,
@@ -85,17 +111,28 @@ def ray_distances(
     boxes : (L, 4) x_min, x_max, y_min, y_max. A distance is in [0, max_range].
     """
     n, k = len(headings), len(angles)
-    centres = np.empty((n, 2))
+    centres, facing = np.empty((n, 2)), np.empty((n, 2))
     for i in range(n):
-        centres[i, 0] = positions[i, 0] + axle_offset * math.cos(headings[i])
-        centres[i, 1] = positions[i, 1] + axle_offset * math.sin(headings[i])
+        facing[i, 0], facing[i, 1] = math.cos(headings[i]), math.sin(headings[i])
+        centres[i, 0] = positions[i, 0] + axle_offset * facing[i, 0]
+        centres[i, 1] = positions[i, 1] + axle_offset * facing[i, 1]
+    mount = np.empty((k, 2))
+    for a in range(k):
+        mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
     # Another body can only be seen if its centre is this close to this one's.
-    reach2 = (2.0 * body_radius + max_range) ** 2
+    reach = 2.0 * body_radius + max_range
+    reach2 = reach * reach
+    if n == 0:
+        return
+    if not (np.isfinite(centres).all() and np.isfinite(angles).all()):
+        raise ValueError("ray_distances: positions and headings must be finite")
+    order, start, of, nx, ny = _cell_grid(centres, reach)  # neighbours within 3 x 3 cells
     ray = np.empty((k, 4))  # sensor point x, y and direction x, y of each sensor
     for i in range(n):
-        cx, cy = centres[i, 0], centres[i, 1]
+        cx, cy, ch, sh = centres[i, 0], centres[i, 1], facing[i, 0], facing[i, 1]
         for a in range(k):
-            ux, uy = math.cos(headings[i] + angles[a]), math.sin(headings[i] + angles[a])
+            # direction of heading + angle, by the sum formulas (no trigonometry per ray)
+            ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
             sx, sy = cx + body_radius * ux, cy + body_radius * uy
             ray[a, 0], ray[a, 1], ray[a, 2], ray[a, 3] = sx, sy, ux, uy
             best = max_range
@@ -122,21 +159,26 @@ def ray_distances(
                     _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
                 )
             out[i, a] = best
-        for j in range(n):
-            dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
-            if j == i or dx * dx + dy * dy >= reach2:
-                continue
-            for a in range(k):
-                hit = _disc_hit(
-                    ray[a, 0],
-                    ray[a, 1],
-                    ray[a, 2],
-                    ray[a, 3],
-                    centres[j, 0],
-                    centres[j, 1],
-                    body_radius,
-                )
-                out[i, a] = min(out[i, a], hit)
+        ci, cj = of[i] // ny, of[i] % ny
+        for gx in range(max(ci - 1, 0), min(ci + 2, nx)):
+            for gy in range(max(cj - 1, 0), min(cj + 2, ny)):
+                c = gx * ny + gy
+                for m in range(start[c], start[c + 1]):
+                    j = order[m]
+                    dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
+                    if j == i or dx * dx + dy * dy >= reach2:
+                        continue
+                    for a in range(k):
+                        hit = _disc_hit(
+                            ray[a, 0],
+                            ray[a, 1],
+                            ray[a, 2],
+                            ray[a, 3],
+                            centres[j, 0],
+                            centres[j, 1],
+                            body_radius,
+                        )
+                        out[i, a] = min(out[i, a], hit)
 
 
 @njit(cache=True)

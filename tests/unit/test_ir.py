@@ -117,16 +117,32 @@ def reference(positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
     return np.minimum(t.min(-1), MAX)
 
 
-@pytest.mark.parametrize("n", [1, 7, 100])
-def test_the_kernel_equals_a_plain_numpy_reference(n):
+@pytest.mark.parametrize(
+    ("n", "spread"),
+    [(1, 0.12), (7, 0.12), (100, 0.12), (100, 0.0), (300, 5.0)],
+    ids=["1", "7", "100", "100 in a heap", "300 over a field with clusters"],
+)
+def test_the_kernel_equals_a_plain_numpy_reference(n, spread):
     rng = np.random.default_rng(n)
-    side = 0.12 * math.sqrt(n)
-    positions, headings = rng.uniform(0, side, (n, 2)), rng.uniform(-math.pi, math.pi, n)
+    positions = rng.uniform(0, 0.12 * math.sqrt(n), (n, 2))
+    if spread:  # clusters scattered over a large field: the neighbour grid widens its cells
+        positions[: n // 2] = rng.uniform(0, spread * 0.12 * n, (n // 2, 2))
+    else:  # all piled up in one cell, pressed into each other
+        positions *= 0.1
+    headings = rng.uniform(-math.pi, math.pi, n)
     ranges = ir_ranges(positions, headings)
     assert ranges.shape == (n, 5)
     np.testing.assert_allclose(ranges, reference(positions, headings), atol=1e-12)
-    if n == 100:
+    if n >= 100:
         assert (ranges < MAX).sum() > 20  # a layout in which robots see each other
+    if not spread:
+        assert (ranges == 0.0).sum() > 100
+
+
+def test_non_finite_poses_are_refused():
+    with pytest.raises(ValueError, match="finite"):
+        ir_ranges([[0.0, 0.0], [math.nan, 0.0]], [0.0, 0.0])
+    assert ir_ranges(np.zeros((0, 2)), np.zeros(0)).shape == (0, 5)
 
 
 def test_the_kernel_is_callable_from_numba_code():
