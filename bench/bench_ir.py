@@ -3,8 +3,9 @@
 Measured side by side in one run, for the 100-robot combined scenario at its initial
 state (robots 0.2 m apart, so rays meet neighbours):
 
-- ``kernel``: :func:`aes_ros.ir.ir_ranges` (numba rays, noise and response curve) against
-  one robot-step of the offline simulator's fused kernel (batch 1, the same scenario);
+- ``kernel``: the numba rays (:func:`aes_ros.ir.ray_distances`, what the offline kernel
+  calls) and :func:`aes_ros.ir.ir_ranges` (numpy entry point: rays, noise and response
+  curve) against one robot-step of the offline simulator (batch 1, the same scenario);
 - ``pybullet``: :func:`sim_bridge.ir_sensors.cast_ir` (one ``rayTestBatch``) against one
   control step of :class:`sim_bridge.world.World`, kinematic and dynamic;
 - ``publish``: the bridge's :class:`sim_bridge.ir_sensors.IrSensors` casting and
@@ -31,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario, simulator
-from aes_ros.ir import IrResponse, ir_ranges
+from aes_ros.ir import IR_ANGLES, IrResponse, ir_ranges, ray_distances
+from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 from sim_bridge.ir_sensors import cast_ir
 from sim_bridge.world import World
@@ -51,15 +53,33 @@ def per_call(fn: Callable[[], object], repeat: int, rounds: int = 5) -> float:
     return best
 
 
-def offline(n: int, repeat: int) -> tuple[float, float]:
-    """(IR kernel, simulator step) [s per robot]."""
+def offline(n: int, repeat: int) -> tuple[float, float, float]:
+    """(rays of the numba kernel, ir_ranges with noise and response, simulator step)
+    [s per robot]."""
     sc = scenario.load("combined").with_robots(n)
     positions, headings = sc.initial_state(0)
     response = IrResponse(noise=0.002)
     rng = np.random.default_rng(0)
+    out = np.empty((n, len(IR_ANGLES)))
+    none, g = np.zeros(0), MonaGeometry()
+    rays = per_call(
+        lambda: ray_distances(
+            positions,
+            headings,
+            g.body_radius,
+            g.axle_offset,
+            IR_ANGLES,
+            response.model.max_range,
+            none,
+            none.reshape(0, 3),
+            none.reshape(0, 4),
+            out,
+        ),
+        repeat,
+    )
     ir = per_call(lambda: ir_ranges(positions, headings, response=response, rng=rng), repeat)
     step = per_call(lambda: simulator.simulate(sc, [0], record=False), 1) / sc.n_steps
-    return ir / n, step / n
+    return rays / n, ir / n, step / n
 
 
 def in_pybullet(n: int, repeat: int, mode: str) -> tuple[float, float]:
@@ -135,7 +155,11 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=200, help="calls per timing")
     args = parser.parse_args()
     n, repeat = args.robots, args.repeat
-    rows = [("kernel (numba) vs offline sim step", *offline(n, repeat))]
+    rays, ir, step = offline(n, repeat)
+    rows = [
+        ("kernel rays (numba) vs offline sim step", rays, step),
+        ("ir_ranges (+noise, response) vs sim step", ir, step),
+    ]
     for mode in ("kinematic", "dynamic"):
         rows.append((f"pybullet rays vs {mode} world step", *in_pybullet(n, repeat, mode)))
     rows.append(("bridge: IR published vs bridge step", *publishing(n, max(20, repeat // 10))))
@@ -146,8 +170,8 @@ def main() -> None:
         print(f"| {what:<40} | {ir * 1e6:8.3f} | {step * 1e6:8.3f} | {ir / step:9.2f} |")
     ratios = [ir / step for _, ir, step in rows]
     print(
-        f"RESULT kernel_ratio={ratios[0]:.3g} pybullet_ratio={ratios[1]:.3g} "
-        f"publish_ratio={ratios[3]:.3g}"
+        f"RESULT kernel_ratio={ratios[0]:.3g} pybullet_ratio={ratios[2]:.3g} "
+        f"publish_ratio={ratios[4]:.3g}"
     )
 
 

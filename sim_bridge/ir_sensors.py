@@ -12,6 +12,7 @@ sensors".
 from __future__ import annotations
 
 import math
+import struct
 import time
 
 import numpy as np
@@ -19,6 +20,7 @@ import pybullet as pb
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Range
 
 from aes_ros.frames import yaw_from_quaternion
@@ -66,6 +68,13 @@ def cast_ir(world: World, max_range: float, robots: np.ndarray | None = None) ->
     )
     fraction = np.array([1.0 if hit[0] < 0 else hit[2] for hit in hits])
     return np.clip(fraction * length - radius, 0.0, max_range).reshape(-1, len(IR_ANGLES))
+
+
+def _serialised_range(frame_id: str) -> bytearray:
+    """A sensor_msgs/Range of an IR sensor in ``frame_id``, serialised (CDR)."""
+    msg = Range(radiation_type=Range.INFRARED, field_of_view=IR_FIELD_OF_VIEW)
+    msg.header.frame_id = frame_id
+    return bytearray(serialize_message(msg))
 
 
 def declare_ir_parameters(node: Node) -> None:
@@ -135,7 +144,7 @@ class IrSensors:
         if reason is not None:
             raise ParameterError(reason)
         self.pubs: list[list] = []
-        self.messages: list[list[Range]] = []
+        self.messages: list[list[bytearray]] = []
         self.listened = np.zeros(0, dtype=int)
         self.checked = -math.inf
         self.next_time = world.time
@@ -168,24 +177,18 @@ class IrSensors:
             self.model = self._model({})
 
     def _create_publishers(self) -> None:
-        """The 5 N publishers and their messages, made when IR is first on."""
+        """The 5 N publishers and their messages, made when IR is first on.
+
+        Each message is kept serialised (publishers take serialised messages) and only its
+        stamp and numbers are written into it: no Python message per reading.
+        """
+        count = len(IR_ANGLES)
         for i in range(self.world.n):
-            self.pubs.append(
-                [
-                    self.node.create_publisher(
-                        Range, names.robot_topic(i, f"{names.IR}_{k}"), SENSOR
-                    )
-                    for k in range(len(IR_ANGLES))
-                ]
-            )
+            topics = [names.robot_topic(i, f"{names.IR}_{k}") for k in range(count)]
+            self.pubs.append([self.node.create_publisher(Range, t, SENSOR) for t in topics])
             self.messages.append(
-                [
-                    Range(radiation_type=Range.INFRARED, field_of_view=IR_FIELD_OF_VIEW)
-                    for _ in IR_ANGLES
-                ]
+                [_serialised_range(f"mona_{i}/{names.IR}_{k}") for k in range(count)]
             )
-            for k, msg in enumerate(self.messages[-1]):
-                msg.header.frame_id = f"mona_{i}/{names.IR}_{k}"
 
     def _update_listeners(self) -> None:
         now = time.monotonic()
@@ -234,8 +237,11 @@ class IrSensors:
         )
         variance = self.noise**2
         for i, row in zip(self.listened.tolist(), readings.tolist(), strict=True):
-            for pub, msg, r in zip(self.pubs[i], self.messages[i], row, strict=True):
-                msg.header.stamp = stamp
-                msg.min_range, msg.max_range = model.min_range, model.max_range
-                msg.range, msg.variance = r, variance
-                pub.publish(msg)
+            for pub, data, r in zip(self.pubs[i], self.messages[i], row, strict=True):
+                # CDR: the stamp follows the 4-byte encapsulation header; the message ends
+                # in min_range, max_range, range, variance (float32)
+                struct.pack_into("<iI", data, 4, stamp.sec, stamp.nanosec)
+                struct.pack_into(
+                    "<4f", data, len(data) - 16, model.min_range, model.max_range, r, variance
+                )
+                pub.publish(bytes(data))
