@@ -30,7 +30,9 @@ import math
 import numpy as np
 from numba import njit, prange, uint64
 
+from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import resolve_contacts
+from aes_ros.ir import ray_distances
 from aes_ros.metrics import FORCE_EPS
 
 #: Layout of the ``params`` vector passed to :func:`advance`.
@@ -39,8 +41,10 @@ PARAM_ORDER = (
     "dir_x", "dir_y", "omega", "center_x", "center_y", "use_centroid", "noise",
     "clip", "max_linear_speed", "max_angular_speed",
     "perception_sigma", "perception_miss", "perception_delay_steps", "perception_period_steps",
-    "noise_dt", "contacts", "body_radius", "axle_offset", "contact_iterations",
+    "noise_dt", "contacts", "body_radius", "axle_offset", "contact_iterations", "w_o",
 )  # fmt: skip
+#: cos and sin of the IR sensors' mounting angles (the avoidance term, aes_ros.avoidance).
+_IR_COS, _IR_SIN = np.cos(IR_ANGLES), np.sin(IR_ANGLES)
 
 
 _ZIGGURAT_R = 3.6541528853610088  # where the ziggurat's tail begins
@@ -201,6 +205,22 @@ def _spring_forces(
 
 
 @njit(inline="always")
+def _avoidance(ranges: np.ndarray, w_o: float, c: float, s: float) -> tuple[float, float]:
+    """The IR repulsion f_o (:func:`aes_ros.avoidance.avoidance_force`) of one robot with
+    ``ranges`` (5,) [m] and heading (cos, sin) = (c, s), world frame."""
+    bx = 0.0
+    by = 0.0
+    for a in range(ranges.shape[0]):
+        if ranges[a] < AVOIDANCE_RANGE:
+            push = min(1.0 - ranges[a] / AVOIDANCE_RANGE, 1.0)
+            bx += push * _IR_COS[a]
+            by += push * _IR_SIN[a]
+    bx = -w_o * bx
+    by = -w_o * by
+    return c * bx - s * by, s * bx + c * by
+
+
+@njit(inline="always")
 def _centroid(points: np.ndarray) -> tuple[float, float]:
     """Mean of ``points[:, 0]`` and ``points[:, 1]`` (``points``: (N, ≥2) [m]), summed in
     index order so that every run's result is the same to the bit."""
@@ -259,7 +279,8 @@ def advance(
     camera_state : (B, 2, 4) uint64, each run's perception generators
         (:func:`aes_ros.perception.perception_state`), advanced by the draws of the
         camera updates among these steps (:func:`camera_draws`, N robot-frames each).
-    bodies : walls (4,) or (0,), circles (M, 3), boxes (L, 4) [m] for the contacts.
+    bodies : walls (4,) or (0,), circles (M, 3), boxes (L, 4) [m] for the contacts and,
+        with ``w_o`` > 0, the IR rays of the avoidance term (exact distances, no noise).
     contact_out : (B, C, 2) out, with ``contacts`` on: the overlaps resolved after each
         step and the smallest centre distance [m] after it
         (:func:`aes_ros.contacts.resolve_contacts`); untouched with contacts off.
@@ -289,6 +310,9 @@ def advance(
         amp_t = d_theta / root_dt
         touching = pb[24] != 0.0
         radius, axle_offset, iterations = pb[25], pb[26], int(pb[27])
+        w_o = pb[28]
+        sensing = w_o > 0.0
+        ranges = np.empty((N if sensing else 0, IR_ANGLES.shape[0]))
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):
@@ -342,6 +366,11 @@ def advance(
                             view[i, 2] = old[i, 2]
                             view[i, 3] = old[i, 3]
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
+            if sensing:  # every robot's IR ranges, cast in the true state
+                ray_distances(
+                    pos, head, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls, circles,
+                    boxes, ranges,
+                )  # fmt: skip
             sox, soy = ox, oy  # the rotation centre the robots see
             if perceive and use_centroid:
                 sox, soy = _centroid(view)
@@ -401,6 +430,10 @@ def advance(
                         fy += rot * (view[i, 0] - sox)
                     seen_c = view[i, 2]
                     seen_s = view[i, 3]
+                if sensing:  # avoidance: the robot's own sensors, its true heading
+                    ax, ay = _avoidance(ranges[i], w_o, c, s)
+                    fx += ax
+                    fy += ay
                 turn_noise = 0.0
                 if noisy:
                     fx += amp_r * noise_x[b, step, i]
