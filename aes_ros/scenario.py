@@ -21,6 +21,9 @@ from aes_ros.model import Gains, SwarmCommand
 from aes_ros.params import PARAMS, ParameterError, validate_params
 
 SETUPS = ("linear", "rotation", "combined")
+#: Every packaged scenario a name loads: the paper's setups and ``cluttered`` (posts across
+#: the path, obstacle avoidance on; docs/model.md, "Obstacle avoidance").
+PACKAGED = (*SETUPS, "cluttered")
 
 
 @dataclass(frozen=True)
@@ -123,11 +126,11 @@ def load(setup_or_path: str | Path, overrides: dict[str, Any] | None = None) -> 
 
 def _read(setup_or_path: str | Path) -> tuple[str, str]:
     name = str(setup_or_path)
-    if name in SETUPS:
+    if name in PACKAGED:
         return resources.files("aes_ros").joinpath(f"scenarios/{name}.yaml").read_text(), name
     path = Path(name)
     if not path.suffix:
-        raise ParameterError(f"setup: unknown setup {name!r}; allowed: {', '.join(SETUPS)}")
+        raise ParameterError(f"setup: unknown setup {name!r}; allowed: {', '.join(PACKAGED)}")
     try:
         return path.read_text(), str(path)
     except OSError as exc:

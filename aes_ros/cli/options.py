@@ -32,8 +32,8 @@ def add_scenario_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--setup",
         default="combined",
-        metavar="{" + ",".join(scenario.SETUPS) + "}",
-        help="one of the paper's setups (default: combined)",
+        metavar="{" + ",".join(scenario.PACKAGED) + "}",
+        help="one of the paper's setups or cluttered (default: combined)",
     )
     p.add_argument(
         "--scenario",
@@ -58,9 +58,9 @@ def load_scenario(args: argparse.Namespace) -> scenario.Scenario:
     """The scenario named by --setup/--scenario with --set, --robots (and --dt/--duration)
     applied."""
     source = args.scenario if args.scenario is not None else args.setup
-    if args.scenario is None and args.setup not in scenario.SETUPS:
+    if args.scenario is None and args.setup not in scenario.PACKAGED:
         raise ParameterError(
-            f"--setup: unknown setup {args.setup!r}; allowed: {', '.join(scenario.SETUPS)}"
+            f"--setup: unknown setup {args.setup!r}; allowed: {', '.join(scenario.PACKAGED)}"
         )
     sc = scenario.load(source, scenario.parse_assignments(args.set))
     if args.robots is not None:
