@@ -1,19 +1,27 @@
 """A pybullet world of N Mona robots, free of ROS (docs/design.md#mona, #ros-interface).
 
-Two modes:
+The scenario's walls and obstacles are static bodies (:mod:`sim_bridge.arena`). Two modes:
 
 ``kinematic``
     The body follows its command exactly, as the paper's Webots supervisor did:
     one explicit Euler step per control period with
     :func:`aes_ros.model.unicycle_step` (the offline simulator's model), the
     result written into pybullet (every step with the GUI, else when pybullet is
-    queried). Robots pass through each other.
+    queried). With ``contacts`` on, each step ends with
+    :func:`aes_ros.contacts.resolve_contacts` (bodies, walls and obstacles as discs,
+    rectangles and circles, in the offline simulator's order, so a lockstep run equals
+    the offline one); with it off, robots pass through each other and everything.
 ``dynamic``
     Wheel motors with velocity control (saturated at the Mona's top wheel
     speed), tyre friction on the floor, a frictionless caster ball and
-    robot–robot collisions between the body cylinders (wheels and caster touch
-    only the floor, which keeps 100 robots at 240 Hz faster than real time);
-    pybullet steps ``substeps`` times per control period.
+    collisions between the body cylinders, walls and obstacles, whatever
+    ``contacts`` says (wheels and caster touch only the floor, which keeps 100 robots
+    at 240 Hz faster than real time); pybullet steps ``substeps`` times per control
+    period.
+
+Either way :attr:`World.last_contacts` gives the contacts of the last step and the
+smallest robot-robot centre distance after it (resolved, or measured as
+:func:`aes_ros.contacts.measure_contacts` counts them).
 
 A robot's pose is that of its ``base_link`` (:mod:`sim_bridge.mona`): the
 ground point under the axle midpoint, ``(x, y)`` [m; odom] and yaw θ [rad].
@@ -32,13 +40,24 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
+from aes_ros.contacts import (
+    ITERATIONS,
+    TOUCH_TOLERANCE,
+    contact_geometry,
+    measure_contacts,
+    resolve_contacts,
+)
 from aes_ros.frames import yaw_from_quaternion
 from aes_ros.model import clip_commands, unicycle_step, wrap_angle
 from aes_ros.ros.interface import MODES
+from sim_bridge.arena import add_arena
 from sim_bridge.mona import MonaGeometry, urdf
 
 # pybullet collision groups (a pair collides if each one's group is in the other's mask)
 _BODY, _FLOOR, _WHEEL, _ALL = 1, 2, 4, 0xFFFF
+#: Dynamic mode: bodies closer than this [m] count as touching (pybullet's resting
+#: contacts sit a fraction of a millimetre in or out).
+DYNAMIC_TOUCH = 5e-4
 
 
 class World:
@@ -61,6 +80,12 @@ class World:
     solver_iterations : pybullet constraint-solver iterations per physics step
         (pybullet's default is 50; 10 is ~3x faster and ample for these
         contacts — the world tests check driving, turning and collisions).
+    contacts : kinematic mode: resolve contacts after every step (the offline
+        simulator's rule); dynamic mode always collides.
+    walls : (4,) x_min, x_max, y_min, y_max [m] of the arena's walls, or None / empty.
+    circles : (M, 3) obstacles x, y, r [m]. boxes : (L, 4) obstacles x_min, x_max,
+        y_min, y_max [m].
+    contact_iterations : sweeps of :func:`aes_ros.contacts.resolve_contacts`.
     """
 
     def __init__(
@@ -76,6 +101,11 @@ class World:
         geometry: MonaGeometry | None = None,
         gui: bool = False,
         solver_iterations: int = 10,
+        contacts: bool = False,
+        walls: np.ndarray | None = None,
+        circles: np.ndarray | None = None,
+        boxes: np.ndarray | None = None,
+        contact_iterations: int = ITERATIONS,
     ) -> None:
         if mode not in MODES:
             raise ValueError(f"mode: {mode!r} is not allowed; use one of {', '.join(MODES)}")
@@ -93,6 +123,11 @@ class World:
         self.cmd_timeout, self.limits = float(cmd_timeout), limits
         self.geometry = geometry or MonaGeometry()
         self.solver_iterations = int(solver_iterations)
+        self.contacts, self.contact_iterations = bool(contacts), int(contact_iterations)
+        #: walls (4,) or (0,), circles (M, 3), boxes (L, 4) [m]
+        self.arena = contact_geometry(walls, circles, boxes)
+        #: contacts of the last step and the smallest centre distance [m] after it
+        self.last_contacts: tuple[int, float] = (0, np.inf)
         self.step_count = 0
         self.commands = np.zeros((self.n, 2))  #: last (u, turn rate) per robot
         self.command_step = np.full(self.n, np.iinfo(np.int64).min // 2)  #: when it arrived
@@ -169,6 +204,7 @@ class World:
                 spinningFriction=0.0,
                 physicsClientId=c,
             )
+        self.arena_bodies = add_arena(c, *self.arena, _BODY, _BODY)
         self._place(*self.initial)
         if self.gui:
             pb.configureDebugVisualizer(pb.COV_ENABLE_GUI, 0, physicsClientId=c)
@@ -256,6 +292,15 @@ class World:
             self._positions, self._headings = unicycle_step(
                 self._positions, self._headings, u, turn, self.dt
             )
+            if self.contacts:  # after the Euler step, as the offline simulator
+                self.last_contacts = resolve_contacts(
+                    self._positions, self._headings, *self._disc, *self.arena,
+                    self.contact_iterations,
+                )  # fmt: skip
+            else:
+                self.last_contacts = measure_contacts(
+                    self._positions, self._headings, *self._disc, *self.arena, TOUCH_TOLERANCE
+                )
             # pybullet only mirrors the state here: place the bodies when something
             # looks at them (the GUI every step, else _base_states), not 100 calls a step.
             self._bodies_stale = True
@@ -276,7 +321,16 @@ class World:
                 )
             for _ in range(self.substeps):
                 pb.stepSimulation(physicsClientId=c)
+            positions, headings = self.poses()
+            self.last_contacts = measure_contacts(
+                positions, headings, *self._disc, *self.arena, DYNAMIC_TOUCH
+            )
         self.step_count += 1
+
+    @property
+    def _disc(self) -> tuple[float, float]:
+        """The bodies of :mod:`aes_ros.contacts`: radius and axle offset [m]."""
+        return self.geometry.body_radius, self.geometry.axle_offset
 
     def poses(self) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 2) [m] and headings (N,) [rad, in [-π, π)] of ``base_link``."""
