@@ -1,12 +1,12 @@
 """The Mona's IR proximity sensors in the bridge: rays in pybullet, published as a driver does.
 
 :func:`cast_ir` casts every robot's five rays (:data:`aes_ros.ir.IR_ANGLES`) in one
-``pybullet.rayTestBatch`` call against whatever the world's bodies are (robots, and walls
-or obstacles the world holds); :class:`IrSensors` turns them into readings with the
-response of :func:`aes_ros.ir.ir_response` and publishes them on ``/mona_<i>/ir_<k>``
-(sensor_msgs/Range, frame ``mona_<i>/ir_<k>``, stamped with sim time), the topics and type
-of the Mona driver, at ``ir_rate`` per second of sim time. docs/model.md, "IR proximity
-sensors".
+``pybullet.rayTestBatch`` call (up to 1638 robots) against whatever the world's bodies are
+(robots, and walls or obstacles the world holds); :class:`IrSensors` turns them into
+readings with the response of :func:`aes_ros.ir.ir_response` and publishes them on
+``/mona_<i>/ir_<k>`` (sensor_msgs/Range, frame ``mona_<i>/ir_<k>``, stamped with sim time),
+the topics and type of the Mona driver, at ``ir_rate`` per second of sim time.
+docs/model.md, "IR proximity sensors".
 """
 
 from __future__ import annotations
@@ -35,6 +35,9 @@ from sim_bridge.world import _WHEEL, World
 #: Rays hit every collision group but the wheels' and caster's, which the kernel's
 #: body discs do not have either.
 RAY_MASK = 0xFFFF & ~_WHEEL
+#: Rays per rayTestBatch call: pybullet refuses more than 16384 and answers only 16383
+#: of exactly 16384.
+MAX_RAYS = 8192
 #: How often [s of wall time] the bridge checks which robots' IR topics have subscribers.
 LISTENERS_EVERY = 0.25
 #: The IR model's parameters, as the Mona driver names them.
@@ -47,7 +50,8 @@ def cast_ir(world: World, max_range: float, robots: np.ndarray | None = None) ->
     ``robots`` : indices of the robots to cast for (None = all). A sensor that meets nothing
     within ``max_range`` reads ``max_range``; one pressed into a body reads 0. Each ray
     starts at the body's centre, inside its own body, which Bullet's ray test does not
-    report, so a robot never sees itself.
+    report, so a robot never sees itself. One ``rayTestBatch`` call per :data:`MAX_RAYS`
+    rays.
     """
     # The bodies' pybullet poses, placed first if the kinematic world has moved them.
     centres, quats = world._base_states()
@@ -60,12 +64,14 @@ def cast_ir(world: World, max_range: float, robots: np.ndarray | None = None) ->
     end = start.copy()
     end[:, 0] += length * np.cos(angle).ravel()
     end[:, 1] += length * np.sin(angle).ravel()
-    hits = pb.rayTestBatch(
-        start.tolist(),
-        end.tolist(),
-        collisionFilterMask=RAY_MASK,
-        physicsClientId=world._client,
-    )
+    hits = []
+    for first in range(0, len(start), MAX_RAYS):
+        hits += pb.rayTestBatch(
+            start[first : first + MAX_RAYS].tolist(),
+            end[first : first + MAX_RAYS].tolist(),
+            collisionFilterMask=RAY_MASK,
+            physicsClientId=world._client,
+        )
     fraction = np.array([1.0 if hit[0] < 0 else hit[2] for hit in hits])
     return np.clip(fraction * length - radius, 0.0, max_range).reshape(-1, len(IR_ANGLES))
 

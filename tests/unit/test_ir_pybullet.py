@@ -16,6 +16,7 @@ import pytest
 from aes_ros.ir import IR_ANGLES, ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
+from sim_bridge import ir_sensors
 from sim_bridge.ir_sensors import cast_ir
 from sim_bridge.world import World
 
@@ -96,6 +97,15 @@ def test_pybullet_rays_agree_with_the_kernel_within_2_mm(mode):
         # a subset of the robots gets the same rays
         some = np.array([4, 0, 9])  # in any order
         np.testing.assert_allclose(cast_ir(world, MAX, some), rays[some], atol=1e-12)
+
+
+def test_rays_split_over_several_batches_give_the_same_distances(monkeypatch):
+    positions, headings = layout()
+    with World(positions, headings) as world:
+        add_walls_and_obstacles(world)
+        whole = cast_ir(world, MAX)
+        monkeypatch.setattr(ir_sensors, "MAX_RAYS", 7)
+        np.testing.assert_array_equal(cast_ir(world, MAX), whole)
 
 
 def test_kinematic_bodies_move_before_the_rays_are_cast():
