@@ -1,8 +1,7 @@
 """The IR rays in pybullet (sim_bridge.ir_sensors.cast_ir) agree with the numba kernel
 (aes_ros.ir) within 2 mm on a synthetic layout, in a real pybullet world, no ROS.
 
-The world (sim_bridge.world.World) builds robots only; the layout's walls and obstacles
-are added here as static pybullet bodies of the same shapes.
+The world (sim_bridge.world.World) holds the layout's robots, walls and obstacles.
 """
 
 from __future__ import annotations
@@ -10,7 +9,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pybullet as pb
 import pytest
 
 from aes_ros.ir import IR_ANGLES, ir_ranges
@@ -26,33 +24,7 @@ MAX = IrModel().max_range
 WALLS = np.array([-0.5, 0.5, -0.4, 0.4])
 CIRCLES = np.array([[0.0, 0.25, 0.03], [-0.3, -0.1, 0.05]])
 BOXES = np.array([[0.2, 0.3, -0.3, -0.2], [-0.1, -0.05, -0.35, -0.15]])
-HEIGHT = 0.1  #: of walls and obstacles [m]
-
-
-def add_static_box(client: int, x0: float, x1: float, y0: float, y1: float) -> None:
-    half = [0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.5 * HEIGHT]
-    shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    centre = [0.5 * (x0 + x1), 0.5 * (y0 + y1), 0.5 * HEIGHT]
-    pb.createMultiBody(0.0, shape, basePosition=centre, physicsClientId=client)
-
-
-def add_walls_and_obstacles(world: World) -> None:
-    c = world._client
-    x0, x1, y0, y1 = WALLS
-    t = 0.05  # wall thickness, outside the rectangle
-    for box in (
-        (x0 - t, x0, y0 - t, y1 + t),
-        (x1, x1 + t, y0 - t, y1 + t),
-        (x0, x1, y0 - t, y0),
-        (x0, x1, y1, y1 + t),
-        *BOXES,
-    ):
-        add_static_box(c, *box)
-    for x, y, r in CIRCLES:
-        shape = pb.createCollisionShape(
-            pb.GEOM_CYLINDER, radius=r, height=HEIGHT, physicsClientId=c
-        )
-        pb.createMultiBody(0.0, shape, basePosition=[x, y, 0.5 * HEIGHT], physicsClientId=c)
+ARENA = {"walls": WALLS, "circles": CIRCLES, "boxes": BOXES}
 
 
 def facing_pair() -> tuple[np.ndarray, np.ndarray]:
@@ -83,8 +55,7 @@ def layout() -> tuple[np.ndarray, np.ndarray]:
 def test_pybullet_rays_agree_with_the_kernel_within_2_mm(mode):
     positions, headings = layout()
     kernel = ir_ranges(positions, headings, walls=WALLS, circles=CIRCLES, boxes=BOXES)
-    with World(positions, headings, mode=mode) as world:
-        add_walls_and_obstacles(world)
+    with World(positions, headings, mode=mode, **ARENA) as world:
         rays = cast_ir(world, MAX)
         np.testing.assert_allclose(rays, kernel, atol=0.002)
         # the layout shows every kind of thing: robots, walls, a corner, circles, boxes
@@ -101,8 +72,7 @@ def test_pybullet_rays_agree_with_the_kernel_within_2_mm(mode):
 
 def test_rays_split_over_several_batches_give_the_same_distances(monkeypatch):
     positions, headings = layout()
-    with World(positions, headings) as world:
-        add_walls_and_obstacles(world)
+    with World(positions, headings, **ARENA) as world:
         whole = cast_ir(world, MAX)
         monkeypatch.setattr(ir_sensors, "MAX_RAYS", 7)
         np.testing.assert_array_equal(cast_ir(world, MAX), whole)
