@@ -25,12 +25,11 @@ import numpy as np
 from numba import njit
 
 from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.mona.messages import IR_BEARINGS_DEG
 from aes_ros.mona.sensors import IrModel
 
 #: Mounting angles [rad] of sensors 0…4, CCW from ahead, in TELEMETRY's order.
-IR_ANGLES = np.radians([0.0, 37.0, -37.0, 67.0, -67.0])
-#: Full field of view of one IR sensor [rad] (an assumption, docs/mona_protocol.md).
-IR_FIELD_OF_VIEW = 0.35
+IR_ANGLES = np.radians(IR_BEARINGS_DEG)
 #: An empty (0,) or (0, k) array: no walls, circles or boxes.
 NO_WALLS = np.zeros(0)
 

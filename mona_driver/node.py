@@ -25,7 +25,7 @@ from std_msgs.msg import Bool
 
 from aes_ros.mona.geometry import MonaGeometry, twist_from_wheels, wheels_from_twist
 from aes_ros.mona.messages import BATTERY_LOW, Hello, Ping, Pong, Stop, Telemetry, Wheels
-from aes_ros.mona.sensors import IrModel, battery_volts, integrate_pose
+from aes_ros.mona.sensors import IR_FIELD_OF_VIEW, IrModel, battery_volts, integrate_pose
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
@@ -38,8 +38,6 @@ from mona_driver.transport import SerialPort, UdpHub, UdpPort
 #: The longest odometry step between two TELEMETRY frames [s]: a longer gap (a link
 #: that was down) is not integrated as if the wheels had kept their speed.
 MAX_ODOM_STEP = 0.2
-#: Full field of view of one IR sensor [rad] (an assumption, docs/mona_protocol.md).
-IR_FIELD_OF_VIEW = 0.35
 
 
 class MonaDriverNode(Node):

@@ -24,8 +24,8 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Range
 
 from aes_ros.frames import yaw_from_quaternion
-from aes_ros.ir import IR_ANGLES, IR_FIELD_OF_VIEW, ir_response
-from aes_ros.mona.sensors import IrModel
+from aes_ros.ir import IR_ANGLES, ir_response
+from aes_ros.mona.sensors import IR_FIELD_OF_VIEW, IrModel
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp

@@ -17,6 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Full field of view of one IR sensor [rad] (an assumption, docs/mona_protocol.md).
+IR_FIELD_OF_VIEW = 0.35
+
 
 @dataclass(frozen=True)
 class IrModel:

@@ -10,9 +10,8 @@ import pytest
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Range
 
-from aes_ros.ir import IR_FIELD_OF_VIEW
 from aes_ros.mona.geometry import MonaGeometry
-from aes_ros.mona.sensors import IrModel
+from aes_ros.mona.sensors import IR_FIELD_OF_VIEW, IrModel
 from aes_ros.ros import interface as names
 from aes_ros.ros.conversions import stamp_to_ns
 from aes_ros.ros.qos import SENSOR
