@@ -1,4 +1,4 @@
-"""Figures of the bridge's control loop, for ``/sim/stats`` and the benchmark (pure).
+"""Figures of the bridge's control loop and bodies, for ``/sim/stats`` and the benchmark (pure).
 
 The latencies go into a histogram of fixed size (log-spaced bins, 1 % wide) rather
 than a list: a bridge nobody asks for its figures runs for hours at 5000 commands/s,
@@ -8,6 +8,7 @@ and a list of them grew by ~10 MB a minute. Percentiles are read from the bins
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -22,7 +23,8 @@ _MIDDLES = np.sqrt(_EDGES[:-1] * _EDGES[1:])
 
 
 class ControlLoopStats:
-    """Commands per robot and their latencies since the last :meth:`snapshot`.
+    """Commands per robot, their latencies and the bodies' contacts since the last
+    :meth:`snapshot`.
 
     Parameters
     ----------
@@ -39,6 +41,14 @@ class ControlLoopStats:
         self._counts = np.zeros(self.n, dtype=np.int64)
         self._histogram = np.zeros(len(_MIDDLES), dtype=np.int64)
         self._latency_max: float | None = None
+        self._contacts = 0
+        self._closest = math.inf
+
+    def bodies(self, contacts: int, closest: float) -> None:
+        """A world step had ``contacts`` contacts and ``closest`` [m] as its smallest
+        robot-robot centre distance (:attr:`sim_bridge.world.World.last_contacts`)."""
+        self._contacts += contacts
+        self._closest = min(self._closest, closest)
 
     def command(self, robot_id: int, latency: float) -> None:
         """A cmd_vel of ``robot_id`` arrived ``latency`` wall seconds after the newest
@@ -53,7 +63,10 @@ class ControlLoopStats:
 
         ``wall_s`` and ``sim_s`` elapsed (their ratio is ``real_time_factor``),
         per-robot ``cmd_vel`` rates [Hz of wall time] (min, median), and the
-        latencies [ms] (p50, p99, max; None without commands).
+        latencies [ms] (p50, p99, max; None without commands); ``contacts_per_s``
+        (contacts counted over the steps, per second of sim time) and
+        ``min_centre_distance_m`` (the smallest robot-robot centre distance after any of
+        those steps; None without a step or with one robot).
         """
         wall0, step0 = self._since
         wall = now - wall0
@@ -69,7 +82,10 @@ class ControlLoopStats:
             "latency_p50_ms": _percentile(self._histogram, 50) * 1e3 if seen else None,
             "latency_p99_ms": _percentile(self._histogram, 99) * 1e3 if seen else None,
             "latency_max_ms": self._latency_max * 1e3 if self._latency_max is not None else None,
+            "contacts": self._contacts,
         }
+        stats["contacts_per_s"] = self._contacts / stats["sim_s"] if stats["sim_s"] > 0 else 0.0
+        stats["min_centre_distance_m"] = self._closest if math.isfinite(self._closest) else None
         stats["real_time_factor"] = stats["sim_s"] / wall if wall > 0 else 0.0
         self._reset(now, step)
         return stats

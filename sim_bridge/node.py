@@ -31,6 +31,7 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import SetBool, Trigger
 
+from aes_ros.obstacles import contact_arrays
 from aes_ros.params import ParameterError
 from aes_ros.perception import PerceptionSettings
 from aes_ros.ros import interface as names
@@ -104,6 +105,9 @@ class SimBridgeNode(Node):
     gui : bool, default false
         Open the pybullet GUI. Read-only.
 
+    The scenario's ``contacts``, ``walls`` and ``obstacles`` go to the world
+    (:class:`sim_bridge.world.World`).
+
     Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
     index = robot id), ``/mona_<i>/odom``, ``/mona_<i>/ir_<k>`` (IR sensors; their
     ``ir_*`` parameters: :class:`sim_bridge.ir_sensors.IrSensors`); subscribes
@@ -134,6 +138,7 @@ class SimBridgeNode(Node):
         self.lockstep = get("lockstep").value
         self.real_time_factor = get("real_time_factor").value
         try:
+            walls, circles, boxes = contact_arrays(scenario.values)
             self.world = World(
                 positions,
                 headings,
@@ -143,6 +148,10 @@ class SimBridgeNode(Node):
                 cmd_timeout=get("cmd_timeout").value,
                 limits=self.limits if get("clip").value else None,
                 gui=get("gui").value,
+                contacts=scenario.contacts,
+                walls=walls,
+                circles=circles,
+                boxes=boxes,
             )
             if get("resume_from").value:
                 state = WorldState.load(get("resume_from").value, self.n)
@@ -321,6 +330,7 @@ class SimBridgeNode(Node):
             return
         self.barrier.next_step(time.monotonic())
         self.world.step()
+        self.stats.bodies(*self.world.last_contacts)
         self.publish_state()
 
     def _resumed(self) -> bool:
@@ -391,8 +401,9 @@ class SimBridgeNode(Node):
     def on_stats(self, request: Trigger.Request, response: Trigger.Response):
         """Control-loop figures since the previous call (or the start), as JSON
         (:meth:`sim_bridge.loop_stats.ControlLoopStats.snapshot`): the real-time
-        factor, per-robot ``cmd_vel`` rates, and the latency from publishing a state
-        to each ``cmd_vel`` arriving here. Resets the counters."""
+        factor, per-robot ``cmd_vel`` rates, the latency from publishing a state to
+        each ``cmd_vel`` arriving here, contacts per second and the smallest centre
+        distance between bodies. Resets the counters."""
         stats = self.stats.snapshot(time.monotonic(), self.world.step_count)
         response.success = True
         response.message = json.dumps(stats)
