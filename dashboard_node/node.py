@@ -214,7 +214,8 @@ class DashboardNode(ControlRequests, Node):
             # keeps 10 Hz on average instead of falling back to 7.5 Hz
             due = self._markers_due + self._markers_period
             self._markers_due = due if due > now else now + self._markers_period
-            self.markers_pub.publish(swarm_markers(frame, springs, self.get_clock().now().to_msg()))
+            stamp = self.get_clock().now().to_msg()
+            self.markers_pub.publish(swarm_markers(frame, springs, stamp, self.view.arena))
             self.markers_published += 1
         return frame
 

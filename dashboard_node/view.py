@@ -6,7 +6,9 @@ frames the page draws: every robot's pose and its force alignment ψ_i (E8), eve
 spring's strain, the centroid trail, the rotation centre and the desired
 direction, the metrics ψ (E8), ψ_heading (E7) and F (E9), and a status line. The
 forces are those of E4 with the dashboard's gains and the supervisor's command,
-computed with :mod:`aes_ros.model`, as the supervisor does.
+computed with :mod:`aes_ros.model`, as the supervisor does. The scenario's walls and
+obstacles go with the sheet; the bodies' contacts per second and smallest centre
+distance are measured in the poses received (:func:`aes_ros.contacts.measure_contacts`).
 """
 
 from __future__ import annotations
@@ -18,9 +20,12 @@ from typing import Any
 
 import numpy as np
 
+from aes_ros.contacts import TOUCH_TOLERANCE, measure_contacts
 from aes_ros.formations import spring_pairs
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.model import Gains, SwarmCommand, total_forces
+from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.obstacles import contact_arrays
 from aes_ros.params import ParameterError
 from aes_ros.scenario import Scenario
 
@@ -33,6 +38,10 @@ DIGITS = 4
 #: The most robots drawn: a frame of 10⁴ is 0.5 MB of JSON and about 20 ms of work;
 #: a ``/swarm/poses`` with more (or none) is dropped and the last good one kept.
 MAX_ROBOTS = 10_000
+#: Sim seconds over which the contacts per second and the closest bodies are shown.
+CONTACTS_WINDOW_S = 1.0
+#: The bodies the contacts are measured with: radius and axle offset [m].
+BODY = MonaGeometry()
 
 
 class PosesError(ValueError):
@@ -60,8 +69,12 @@ class SwarmView:
     trail: deque = field(default_factory=deque)
     silent: list[int] = field(default_factory=list)
     _clock: deque = field(default_factory=lambda: deque(maxlen=200))
+    #: (t, contacts, closest centre distance) of each poses message in the last window
+    _bodies: deque = field(default_factory=deque)
 
     def __post_init__(self) -> None:
+        #: walls (4,) or (0,), circles (M, 3), boxes (L, 4) [m; odom]
+        self.arena = contact_arrays(self.scenario.values)
         self.gains = self.scenario.gains
         self.command = self.scenario.command
         self._sheet(len(self.scenario.nominal_positions()))
@@ -96,11 +109,20 @@ class SwarmView:
         if self.t is not None and t < self.t:  # a new clock: start the trail over
             self.trail.clear()
             self.history.clear()
+            self._bodies.clear()
         self.t, self.positions, self.headings = t, positions, headings
         c = positions.mean(axis=0)
         self.trail.append((t, float(c[0]), float(c[1])))
         while self.trail and self.trail[0][0] < t - HISTORY_S:
             self.trail.popleft()
+        pos = np.ascontiguousarray(positions, dtype=float)
+        head = np.ascontiguousarray(headings, dtype=float)
+        count, closest = measure_contacts(
+            pos, head, BODY.body_radius, BODY.axle_offset, *self.arena, TOUCH_TOLERANCE
+        )
+        self._bodies.append((t, count, closest))
+        while self._bodies[0][0] < t - CONTACTS_WINDOW_S:
+            self._bodies.popleft()
 
     def on_metric(self, name: str, value: float) -> None:
         """``alignment``, ``heading_order`` or ``total_force`` from the supervisor."""
@@ -143,6 +165,19 @@ class SwarmView:
         (w0, t0), (w1, t1) = self._clock[0], self._clock[-1]
         return (t1 - t0) / (w1 - w0) if w1 > w0 else None
 
+    def contacts(self) -> tuple[float | None, float | None]:
+        """Contacts per second of sim time and the smallest centre distance [m] over
+        the poses of the last ``CONTACTS_WINDOW_S``: the mean count per message over
+        the shortest gap between messages (a step), so missed messages do not count
+        as no contacts. None where unknown."""
+        if not self._bodies:
+            return None, None
+        t, count, closest = np.array(self._bodies).T
+        gaps = np.diff(t)
+        gaps = gaps[gaps > 0]
+        rate = float(count.mean() / gaps.min()) if len(gaps) else None
+        return rate, float(closest.min())
+
     def sheet_message(self) -> dict[str, Any]:
         """The static part, sent once per viewer and when the swarm's size changes."""
         return {
@@ -153,6 +188,9 @@ class SwarmView:
             "gains": list(GAIN_NAMES),
             "scenario": self.label,
             "history": [[_r(v) for v in row] for row in self.history],
+            "walls": self.arena[0].tolist(),
+            "circles": self.arena[1].tolist(),
+            "boxes": self.arena[2].tolist(),
         }
 
     def frame(self) -> dict[str, Any]:
@@ -171,6 +209,8 @@ class SwarmView:
         }
         if self.positions is None:
             return out
+        rate, closest = self.contacts()
+        out.update(contacts_per_s=_r(rate), min_centre_distance=_r(closest))
         pos, head = self.positions, self.headings
         forces = total_forces(pos, self.neighbors, self.rest, self.gains, self.command)
         norm = np.hypot(forces[:, 0], forces[:, 1])

@@ -10,7 +10,9 @@ world frame ``odom``, namespaces as RViz lists them:
   compressed by 30 % or more;
 - ``centroid_path``: the centroid over the last minute (LINE_STRIP);
 - ``direction``: an arrow from the centroid along v_d (length ∝ |v_d|);
-- ``rotation_center``: a small sphere at x_c.
+- ``rotation_center``: a small sphere at x_c;
+- ``walls``: the scenario's walls, a closed dark line on their rectangle;
+- ``obstacles``: its circles (dark cylinders) and boxes (dark cubes), ``ARENA_HEIGHT`` tall.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import Point
 from std_msgs.msg import ColorRGBA
@@ -32,6 +35,9 @@ BODY_DIAMETER, BODY_HEIGHT = 0.08, 0.035
 STRAIN_RED, HEADING_LENGTH = 0.3, 0.06
 #: A marker left alone disappears after this long: a stopped dashboard leaves no ghosts.
 LIFETIME = Duration(sec=1, nanosec=0)
+#: Height [m] drawn for walls and obstacles; their colour.
+ARENA_HEIGHT = 0.1
+ARENA_COLOR = ColorRGBA(r=0.2, g=0.2, b=0.2, a=1.0)
 
 
 def alignment_color(psi: float, silent: bool = False) -> ColorRGBA:
@@ -60,10 +66,45 @@ def _point(x: float, y: float, z: float = 0.0) -> Point:
     return Point(x=float(x), y=float(y), z=float(z))
 
 
+def arena_markers(
+    walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray, stamp: Time
+) -> list[Marker]:
+    """Markers of the walls (4,) x_min, x_max, y_min, y_max or (0,), the circles (M, 3)
+    x, y, r and the boxes (L, 4) x_min, x_max, y_min, y_max [m; odom]."""
+    out = []
+    if len(walls):
+        x0, x1, y0, y1 = (float(v) for v in walls)
+        line = _marker("walls", 0, Marker.LINE_STRIP, stamp)
+        line.scale.x = 0.02
+        line.color = ARENA_COLOR
+        corners = ((x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0))
+        line.points = [_point(x, y, ARENA_HEIGHT / 2) for x, y in corners]
+        out.append(line)
+    posts = np.reshape(circles, (-1, 3)).tolist()
+    for k, (x, y, r) in enumerate(posts):
+        post = _marker("obstacles", k, Marker.CYLINDER, stamp)
+        post.pose.position = _point(x, y, ARENA_HEIGHT / 2)
+        post.scale.x = post.scale.y = 2.0 * r
+        post.scale.z = ARENA_HEIGHT
+        post.color = ARENA_COLOR
+        out.append(post)
+    for k, (x0, x1, y0, y1) in enumerate(np.reshape(boxes, (-1, 4)).tolist(), len(posts)):
+        box = _marker("obstacles", k, Marker.CUBE, stamp)
+        box.pose.position = _point((x0 + x1) / 2, (y0 + y1) / 2, ARENA_HEIGHT / 2)
+        box.scale.x, box.scale.y, box.scale.z = x1 - x0, y1 - y0, ARENA_HEIGHT
+        box.color = ARENA_COLOR
+        out.append(box)
+    return out
+
+
 def swarm_markers(
-    frame: dict[str, Any], springs: Sequence[Sequence[int]], stamp: Time
+    frame: dict[str, Any],
+    springs: Sequence[Sequence[int]],
+    stamp: Time,
+    arena: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
 ) -> MarkerArray:
-    """The markers of one dashboard ``frame`` (with robot poses) and its ``springs``."""
+    """The markers of one dashboard ``frame`` (with robot poses) and its ``springs``,
+    and of the ``arena``'s walls, circles and boxes (:func:`arena_markers`) if given."""
     out = MarkerArray()
     x, y, theta, psi = frame["x"], frame["y"], frame["theta"], frame["psi"]
     silent = set(frame.get("silent", []))
@@ -110,4 +151,6 @@ def swarm_markers(
     center.scale.x = center.scale.y = center.scale.z = 0.04
     center.color = ColorRGBA(r=0.6, g=0.1, b=0.8, a=1.0)
     out.markers.append(center)
+    if arena is not None:
+        out.markers += arena_markers(*arena, stamp)
     return out

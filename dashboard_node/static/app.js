@@ -157,6 +157,8 @@ function drawStatus() {
     `t = ${fmt(f.t, 1)} s · real-time factor ${fmt(f.rtf, 2)} · robots ${f.n - silent} alive` +
     `${silent ? `, ${silent} silent` : ""} · ${state.sheet ? state.sheet.scenario : ""} · ` +
     `${f.enabled === false ? "disabled" : "enabled"} · ψ ${fmt(f.metrics.alignment)} · ` +
+    `contacts ${fmt(f.contacts_per_s, 1)}/s · closest ` +
+    `${f.min_centre_distance == null ? "–" : fmt(1000 * f.min_centre_distance, 1)} mm · ` +
     `${state.framesPerSecond} updates/s`
   );
   $("enable").textContent = f.enabled === false ? "enable" : "disable";
@@ -202,6 +204,7 @@ function drawArena() {
   const { cx, cy, scale } = state.view;
   const sx = (x) => w / 2 + (x - cx) * scale;
   const sy = (y) => h / 2 - (y - cy) * scale;
+  drawWallsAndObstacles(ctx, sx, sy, scale);
   // springs, tinted by strain (full red at 30 %)
   const springs = state.sheet && f.strain && state.sheet.springs.length === f.strain.length;
   if (springs) {
@@ -266,6 +269,27 @@ function drawArena() {
   if (f.centroid && f.direction && (f.direction[0] || f.direction[1])) {
     arrow(ctx, sx(f.centroid[0]), sy(f.centroid[1]), 60 * f.direction[0], -60 * f.direction[1], "#1565c0");
   }
+}
+
+// The scenario's walls (a dark rectangle) and obstacles (dark circles and boxes).
+function drawWallsAndObstacles(ctx, sx, sy, scale) {
+  const s = state.sheet;
+  if (!s) return;
+  ctx.fillStyle = ctx.strokeStyle = "#333333";
+  if (s.walls && s.walls.length === 4) {
+    const [x0, x1, y0, y1] = s.walls;
+    ctx.lineWidth = 4;
+    ctx.strokeRect(sx(x0), sy(y1), (x1 - x0) * scale, (y1 - y0) * scale);
+  }
+  const shapes = new Path2D();
+  for (const [x, y, r] of s.circles || []) {
+    shapes.moveTo(sx(x) + r * scale, sy(y));
+    shapes.arc(sx(x), sy(y), r * scale, 0, 2 * Math.PI);
+  }
+  for (const [x0, x1, y0, y1] of s.boxes || []) {
+    shapes.rect(sx(x0), sy(y1), (x1 - x0) * scale, (y1 - y0) * scale);
+  }
+  ctx.fill(shapes);
 }
 
 function arrow(ctx, x, y, dx, dy, color) {
