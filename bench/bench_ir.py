@@ -17,7 +17,7 @@ Prints a table [µs per robot] and, as its last line,
 ``RESULT kernel_ratio=<IR / sim step> pybullet_ratio=<IR / kinematic world step>
 publish_ratio=<IR published / bridge step>``.
 
-Usage: ``python bench/bench_ir.py [--robots 100] [--repeat 200]``
+Usage: ``python bench/bench_ir.py [--robots 100] [--calls 200]``
 """
 
 from __future__ import annotations
@@ -153,9 +153,9 @@ def publishing(n: int, repeat: int) -> tuple[float, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--robots", type=int, default=100, help="N (default 100)")
-    parser.add_argument("--repeat", type=int, default=200, help="calls per timing")
+    parser.add_argument("--calls", type=int, default=200, help="calls per timing")
     args = parser.parse_args()
-    n, repeat = args.robots, args.repeat
+    n, repeat = args.robots, args.calls
     rays, ir, step = offline(n, repeat)
     rows = [
         ("kernel rays (numba) vs offline sim step", rays, step),
