@@ -5,11 +5,14 @@ pybullet bridge, so that offline and lockstep ROS runs stay bit-equal. A body is
 radius r centred ``axle_offset`` ahead of the robot's pose point (the axle midpoint):
 ``centre = position + axle_offset (cos θ, sin θ)``. After each Euler step,
 :func:`resolve_contacts` separates overlapping bodies by moving their centres (the heading
-is kept): position-based separation, a few Gauss-Seidel sweeps over the pairs that a
-spatial grid of cells 2r finds, each sweep ending with the walls and obstacles.
+is kept): position-based separation, a few Gauss-Seidel sweeps over the overlapping
+pairs in lexicographic order, each sweep ending with the walls and obstacles. Candidate
+pairs come from a spatial grid of cells 4r (:func:`near_pairs`); the simulator's kernel
+keeps that list over steps until a body has moved r/2 (:func:`resolve_listed`), which
+gives the same bits as a list made afresh.
 
-Every loop runs in index order, so the result is bit-reproducible; positions without an
-overlap are not written to.
+Every loop runs in a fixed order (ties in robot index order), so the result is
+bit-reproducible; positions without an overlap are not written to.
 """
 
 from __future__ import annotations
@@ -26,94 +29,113 @@ SLOP = 1e-9
 #: Default number of Gauss-Seidel sweeps per step.
 ITERATIONS = 8
 
+#: Pairs whose centres are closer than NEAR body radii are listed as candidates (a
+#: Verlet list); the smallest centre distance is reported when below CLOSE radii (else
+#: inf), and a list is rebuilt once a body has moved (NEAR - CLOSE) / 2 radii since it
+#: was made, so that no pair left out of it can be closer than CLOSE radii.
+NEAR, CLOSE = 4.0, 3.0
+
 NO_WALLS = np.empty(0)
 NO_CIRCLES = np.empty((0, 3))
 NO_BOXES = np.empty((0, 4))
 
 
-@njit(cache=True)
-def _build_grid(
-    cx: np.ndarray, cy: np.ndarray, cell: float, gx: np.ndarray, gy: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, int]:
-    """Hash the centres into cells of side ``cell``: each robot's cell (gx, gy, out) and a
-    counting sort by hash bucket, start (H+1,) and order (N,), stable in robot index."""
-    n = cx.shape[0]
-    size = 1
-    while size < 2 * n:
-        size *= 2
-    mask = size - 1
-    count = np.zeros(size + 1, np.int64)
-    bucket = np.empty(n, np.int64)
-    for i in range(n):
-        gx[i] = math.floor(cx[i] / cell)
-        gy[i] = math.floor(cy[i] / cell)
-        h = _hash(gx[i], gy[i], mask)
-        bucket[i] = h
-        count[h + 1] += 1
-    for h in range(size):
-        count[h + 1] += count[h]
-    fill = count[:-1].copy()
-    order = np.empty(n, np.int64)
-    for i in range(n):
-        order[fill[bucket[i]]] = i
-        fill[bucket[i]] += 1
-    return count, order, mask
-
-
 @njit(inline="always")
-def _hash(ix: int, iy: int, mask: int) -> int:
-    return ((ix * 73856093) ^ (iy * 19349663)) & mask
+def _move(
+    positions: np.ndarray, cx: np.ndarray, cy: np.ndarray, i: int, mx: float, my: float
+) -> None:
+    cx[i] += mx
+    cy[i] += my
+    positions[i, 0] += mx
+    positions[i, 1] += my
 
 
 @njit(cache=True)
-def _separate_pairs(
-    positions: np.ndarray,
-    cx: np.ndarray,
-    cy: np.ndarray,
-    radius: float,
-    gx: np.ndarray,
-    gy: np.ndarray,
-    start: np.ndarray,
-    order: np.ndarray,
-    mask: int,
-) -> int:
-    """One Gauss-Seidel sweep over overlapping pairs (i < j, in index order): each body
-    moves half the depth along the line of centres. Returns the overlaps found."""
+def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
+    """The pairs (K, 2) int64 (i, j), i < j, whose centres cx, cy (N,) [m] are closer
+    than ``cutoff`` [m], in lexicographic order; found in a grid of cells of that side."""
     n = cx.shape[0]
-    touch = 2.0 * radius
-    found = 0
+    x0 = cx.min()
+    y0 = cy.min()
+    nx = int((cx.max() - x0) / cutoff) + 1
+    ny = int((cy.max() - y0) / cutoff) + 1
+    start = np.zeros(nx * ny + 1, np.int64)
+    home = np.empty(n, np.int64)
     for i in range(n):
-        for ox in range(-1, 2):
-            for oy in range(-1, 2):
-                kx = gx[i] + ox
-                ky = gy[i] + oy
-                h = _hash(kx, ky, mask)
-                for slot in range(start[h], start[h + 1]):
-                    j = order[slot]
-                    if j <= i or gx[j] != kx or gy[j] != ky:
-                        continue
-                    dx = cx[j] - cx[i]
-                    dy = cy[j] - cy[i]
-                    d2 = dx * dx + dy * dy
-                    if d2 >= (touch - SLOP) * (touch - SLOP):
-                        continue
-                    found += 1
-                    d = math.sqrt(d2)
-                    if d > 0.0:
-                        nx = dx / d
-                        ny = dy / d
-                    else:  # coincident centres: split along x, lower index to -x
-                        nx = 1.0
-                        ny = 0.0
-                    half = 0.5 * (touch - d)
-                    cx[i] -= half * nx
-                    cy[i] -= half * ny
-                    cx[j] += half * nx
-                    cy[j] += half * ny
-                    positions[i, 0] -= half * nx
-                    positions[i, 1] -= half * ny
-                    positions[j, 0] += half * nx
-                    positions[j, 1] += half * ny
+        home[i] = int((cx[i] - x0) / cutoff) * ny + int((cy[i] - y0) / cutoff)
+        start[home[i] + 1] += 1
+    for k in range(nx * ny):
+        start[k + 1] += start[k]
+    fill = start[:-1].copy()
+    members = np.empty(n, np.int64)
+    for i in range(n):  # a counting sort: each cell's robots in index order
+        members[fill[home[i]]] = i
+        fill[home[i]] += 1
+    cutoff2 = cutoff * cutoff
+    keys = np.empty(2 * n + 8, np.int64)
+    count = 0
+    for i in range(n):
+        ix = home[i] // ny
+        iy = home[i] - ix * ny
+        # half the 3 x 3 stencil, so each pair is met once: the own cell (j > i), the
+        # cell above and the three cells of the next column
+        for e in range(5):
+            kx = ix + (0 if e < 2 else 1)
+            ky = iy + (e if e < 2 else e - 3)
+            if kx >= nx or ky < 0 or ky >= ny:
+                continue
+            k = kx * ny + ky
+            for slot in range(start[k], start[k + 1]):
+                j = members[slot]
+                if e == 0 and j <= i:
+                    continue
+                dx = cx[j] - cx[i]
+                dy = cy[j] - cy[i]
+                if dx * dx + dy * dy >= cutoff2:
+                    continue
+                if count == keys.shape[0]:
+                    grown = np.empty(2 * count, np.int64)
+                    grown[:count] = keys
+                    keys = grown
+                keys[count] = min(i, j) * n + max(i, j)
+                count += 1
+    keys = np.sort(keys[:count])
+    pairs = np.empty((count, 2), np.int64)
+    for e in range(count):
+        pairs[e, 0] = keys[e] // n
+        pairs[e, 1] = keys[e] - pairs[e, 0] * n
+    return pairs
+
+
+@njit(cache=True)
+def _separate_listed(
+    positions: np.ndarray, cx: np.ndarray, cy: np.ndarray, radius: float, pairs: np.ndarray
+) -> int:
+    """One Gauss-Seidel sweep over ``pairs`` in order: each overlapping pair is separated
+    in turn, each body moving half the depth along the line of centres, to 2r apart.
+    Returns the overlaps found."""
+    touch = 2.0 * radius
+    limit2 = (touch - SLOP) * (touch - SLOP)
+    found = 0
+    for e in range(pairs.shape[0]):
+        i = pairs[e, 0]
+        j = pairs[e, 1]
+        dx = cx[j] - cx[i]
+        dy = cy[j] - cy[i]
+        d2 = dx * dx + dy * dy
+        if d2 >= limit2:
+            continue
+        found += 1
+        d = math.sqrt(d2)
+        if d > 0.0:
+            ux = dx / d
+            uy = dy / d
+        else:  # coincident centres: split along x, the lower index to -x
+            ux = 1.0
+            uy = 0.0
+        half = 0.5 * (touch - d)
+        _move(positions, cx, cy, i, -half * ux, -half * uy)
+        _move(positions, cx, cy, j, half * ux, half * uy)
     return found
 
 
@@ -200,34 +222,89 @@ def _push_out(
     return found
 
 
-@njit(inline="always")
-def _move(
-    positions: np.ndarray, cx: np.ndarray, cy: np.ndarray, i: int, mx: float, my: float
-) -> None:
-    cx[i] += mx
-    cy[i] += my
-    positions[i, 0] += mx
-    positions[i, 1] += my
+@njit(cache=True)
+def _stale(
+    cx: np.ndarray, cy: np.ndarray, x_ref: np.ndarray, y_ref: np.ndarray, skin: float
+) -> bool:
+    """Whether a centre has moved more than ``skin`` [m] since the list was made."""
+    for i in range(cx.shape[0]):
+        dx = cx[i] - x_ref[i]
+        dy = cy[i] - y_ref[i]
+        if dx * dx + dy * dy > skin * skin:
+            return True
+    return False
 
 
 @njit(cache=True)
-def _min_distance(cx: np.ndarray, cy: np.ndarray) -> float:
-    """Smallest centre distance [m] (inf for fewer than two): a sweep along x."""
-    n = cx.shape[0]
-    order = np.argsort(cx, kind="mergesort")
+def resolve_listed(
+    positions: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    radius: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    iterations: int,
+    pairs: np.ndarray,
+    x_ref: np.ndarray,
+    y_ref: np.ndarray,
+) -> tuple[int, float, np.ndarray]:
+    """:func:`resolve_contacts` from the body centres cx, cy (N,) [m] (moved in place with
+    the positions) and a candidate list ``pairs`` made by :func:`near_pairs` at the
+    centres x_ref, y_ref (N,) [m]; returns the list to use next (a new one, with x_ref,
+    y_ref set to its centres, once a body has moved too far).
+
+    A sweep resolves the overlapping pairs in lexicographic order; every list that holds
+    all pairs that can overlap gives the same sweep, so a list kept over steps (the
+    simulator's kernel) gives the bits of a fresh one (:func:`resolve_contacts`).
+    """
+    n = positions.shape[0]
+    if n == 0:
+        return 0, np.inf, pairs
+    near = NEAR * radius
+    skin = 0.5 * (NEAR - CLOSE) * radius
+    contacts = 0
+    for sweep in range(iterations + 1):
+        if _stale(cx, cy, x_ref, y_ref, skin):
+            pairs = near_pairs(cx, cy, near)
+            x_ref[:] = cx
+            y_ref[:] = cy
+        if sweep == iterations:
+            break  # the last pass only checks the list for the distances below
+        found = _separate_listed(positions, cx, cy, radius, pairs)
+        found += _push_out(positions, cx, cy, radius, walls, circles, boxes)
+        if sweep == 0:
+            contacts = found
+        if found == 0:
+            break
     best = np.inf
-    for a in range(n):
-        i = order[a]
-        for b in range(a + 1, n):
-            j = order[b]
-            dx = cx[j] - cx[i]
-            if dx * dx >= best:
-                break
-            dy = cy[j] - cy[i]
-            d2 = dx * dx + dy * dy
-            if d2 < best:
-                best = d2
-    return math.sqrt(best)
+    for e in range(pairs.shape[0]):
+        dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
+        dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
+        best = min(best, dx * dx + dy * dy)
+    close = CLOSE * radius
+    return contacts, (math.sqrt(best) if best < close * close else np.inf), pairs
+
+
+@njit(cache=True)
+def resolve_centres(
+    positions: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    radius: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    iterations: int,
+) -> tuple[int, float]:
+    """:func:`resolve_listed` with a list made now."""
+    if positions.shape[0] == 0:
+        return 0, np.inf
+    pairs = near_pairs(cx, cy, NEAR * radius)
+    found, closest, _ = resolve_listed(
+        positions, cx, cy, radius, walls, circles, boxes, iterations, pairs, cx.copy(), cy.copy()
+    )
+    return found, closest
 
 
 @njit(cache=True)
@@ -258,8 +335,9 @@ def resolve_contacts(
     -------
     contacts : overlapping robot pairs plus robot-wall and robot-obstacle overlaps
         found before resolution.
-    min_centre_distance : smallest robot-robot centre distance [m] after resolution
-        (inf for one robot).
+    min_centre_distance : smallest robot-robot centre distance [m] after resolution;
+        inf for one robot and when no two centres are within CLOSE = 3 radii (nothing
+        near a contact).
     """
     n = positions.shape[0]
     cx = np.empty(n)
@@ -267,19 +345,7 @@ def resolve_contacts(
     for i in range(n):
         cx[i] = positions[i, 0] + axle_offset * math.cos(headings[i])
         cy[i] = positions[i, 1] + axle_offset * math.sin(headings[i])
-    gx = np.empty(n, np.int64)
-    gy = np.empty(n, np.int64)
-    cell = 2.0 * radius
-    contacts = 0
-    for sweep in range(iterations):
-        start, order, mask = _build_grid(cx, cy, cell, gx, gy)
-        found = _separate_pairs(positions, cx, cy, radius, gx, gy, start, order, mask)
-        found += _push_out(positions, cx, cy, radius, walls, circles, boxes)
-        if sweep == 0:
-            contacts = found
-        if found == 0:
-            break
-    return contacts, _min_distance(cx, cy)
+    return resolve_centres(positions, cx, cy, radius, walls, circles, boxes, iterations)
 
 
 @njit(cache=True)
@@ -295,7 +361,7 @@ def measure_contacts(
 ) -> tuple[int, float]:
     """Contacts in a state, nothing moved: robot pairs, robot-wall and robot-obstacle
     pairs whose bodies overlap or are within ``tolerance`` [m] of touching, and the
-    smallest robot-robot centre distance [m] (inf for one robot).
+    smallest robot-robot centre distance [m] if below CLOSE radii (else inf).
 
     Shapes and units as :func:`resolve_contacts`. After a step with contacts on,
     bodies pressed together sit at touching distance, so with a tolerance of a
@@ -307,25 +373,21 @@ def measure_contacts(
     for i in range(n):
         cx[i] = positions[i, 0] + axle_offset * math.cos(headings[i])
         cy[i] = positions[i, 1] + axle_offset * math.sin(headings[i])
-    gx = np.empty(n, np.int64)
-    gy = np.empty(n, np.int64)
+    if n == 0:
+        return 0, np.inf
     reach = 2.0 * radius + tolerance
-    start, order, mask = _build_grid(cx, cy, reach, gx, gy)
+    close = CLOSE * radius
+    pairs = near_pairs(cx, cy, max(reach, close))
     found = 0
+    best = np.inf
+    for e in range(pairs.shape[0]):
+        dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
+        dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
+        d2 = dx * dx + dy * dy
+        best = min(best, d2)
+        if d2 <= reach * reach:
+            found += 1
     for i in range(n):
-        for ox in range(-1, 2):
-            for oy in range(-1, 2):
-                kx = gx[i] + ox
-                ky = gy[i] + oy
-                h = _hash(kx, ky, mask)
-                for slot in range(start[h], start[h + 1]):
-                    j = order[slot]
-                    if j <= i or gx[j] != kx or gy[j] != ky:
-                        continue
-                    dx = cx[j] - cx[i]
-                    dy = cy[j] - cy[i]
-                    if dx * dx + dy * dy <= reach * reach:
-                        found += 1
         for c in range(circles.shape[0]):
             if math.hypot(cx[i] - circles[c, 0], cy[i] - circles[c, 1]) <= (
                 circles[c, 2] + radius + tolerance
@@ -343,7 +405,7 @@ def measure_contacts(
             hi_y = walls[3] - radius - tolerance
             if cx[i] <= lo_x or cx[i] >= hi_x or cy[i] <= lo_y or cy[i] >= hi_y:
                 found += 1
-    return found, _min_distance(cx, cy)
+    return found, (math.sqrt(best) if best < close * close else np.inf)
 
 
 #: Gap [m] within which :func:`contacts_over_time` counts bodies as touching.

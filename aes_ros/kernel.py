@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit, prange, uint64
 
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
-from aes_ros.contacts import resolve_contacts
+from aes_ros.contacts import resolve_listed
 from aes_ros.ir import ray_distances
 from aes_ros.metrics import FORCE_EPS
 
@@ -335,6 +335,18 @@ def advance(
         camera_z = np.zeros((M, 2))  # zeros: what a stream switched off contributes
         camera_u = np.zeros(M)
         view = seen[b]
+        # with contacts: the new headings' cos and sin, taken for the body centres after
+        # a step and kept for the next step (computed once; M2 = N, else 0)
+        M2 = N if touching else 0
+        trig_c = np.empty(M2)
+        trig_s = np.empty(M2)
+        body_x = np.empty(M2)
+        body_y = np.empty(M2)
+        have_trig = False
+        # and the candidate pairs, kept over steps (aes_ros.contacts.resolve_listed)
+        ref_x = np.full(M2, np.inf)  # inf: no list yet, the first step makes one
+        ref_y = np.full(M2, np.inf)
+        listed = np.empty((0, 2), np.int64)
         if perceive:
             _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
         for step in range(n_steps):
@@ -347,8 +359,12 @@ def advance(
             if perceive:
                 now = ring[b, t % ring_len]
                 for i in range(N):
-                    c = math.cos(head[i])
-                    s = math.sin(head[i])
+                    if have_trig:
+                        c = trig_c[i]
+                        s = trig_s[i]
+                    else:
+                        c = math.cos(head[i])
+                        s = math.sin(head[i])
                     true_c[i] = c
                     true_s[i] = s
                     now[i, 0] = pos[i, 0]
@@ -407,6 +423,9 @@ def advance(
                 if perceive:
                     c = true_c[i]
                     s = true_s[i]
+                elif have_trig:
+                    c = trig_c[i]
+                    s = trig_s[i]
                 else:
                     c = math.cos(th)
                     s = math.sin(th)
@@ -460,9 +479,16 @@ def advance(
             metrics[b, step, 4] = cy
             pos[:, :] = new_pos
             head[:] = new_head
-            if touching:
-                found, closest = resolve_contacts(
-                    pos, head, radius, axle_offset, walls, circles, boxes, iterations
-                )
+            if touching:  # aes_ros.contacts.resolve_contacts, its centres computed here
+                for i in range(N):
+                    trig_c[i] = math.cos(head[i])
+                    trig_s[i] = math.sin(head[i])
+                    body_x[i] = pos[i, 0] + axle_offset * trig_c[i]
+                    body_y[i] = pos[i, 1] + axle_offset * trig_s[i]
+                have_trig = True
+                found, closest, listed = resolve_listed(
+                    pos, body_x, body_y, radius, walls, circles, boxes, iterations,
+                    listed, ref_x, ref_y,
+                )  # fmt: skip
                 contact_out[b, step, 0] = found
                 contact_out[b, step, 1] = closest

@@ -50,7 +50,8 @@ def metrics_table(
     pairs, robots at a wall or an obstacle, overlapping or touching:
     :func:`aes_ros.contacts.measure_contacts`) over the interval that led to it, so its
     mean over a run is the run's contacts per second; ``min_centre_distance`` [m] is the
-    smallest distance between two body centres, the least over the runs.
+    smallest distance between two body centres (inf when none are within 3 body radii),
+    the least over the runs.
 
     Returns a dict of (T,) arrays keyed by :data:`CSV_COLUMNS`.
     """

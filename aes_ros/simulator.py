@@ -87,7 +87,7 @@ class SimResult:
         (:func:`aes_ros.contacts.measure_contacts`; at 0 and T only when not recorded,
         NaN elsewhere).
     min_distance : (B, T+1) smallest centre distance between two bodies [m], the
-        same way (NaN where not known).
+        same way: inf when no two are within 3 body radii, NaN where not known.
     """
 
     times: np.ndarray

@@ -10,14 +10,16 @@ scenario:
   of 1, 10, 150 and 1500 Monte-Carlo runs;
 - ``numba, perception on`` against ``off``: the kernel with a lab-like tracker
   (:data:`CAMERA`: σ_p = 3 mm, τ = 50 ms, 20 Hz, 1 % missed) and without, at
-  batch 150, measured alternately in the same run (issue #25 asks on ≤ 1.5 × off).
+  batch 150, measured alternately in the same run (issue #25 asks on ≤ 1.5 × off);
+- ``numba, contacts on`` against ``off``: the kernel resolving body contacts after every
+  step (:mod:`aes_ros.contacts`) and not, the same way (the goal: on ≤ 1.5 × off).
 
 Prints a table and, as its last line,
 ``RESULT agent_steps_per_s=<numba at the largest batch> speedup_vs_loop=<ratio>
-perception_cost=<time on / time off>``.
+perception_cost=<time on / time off> contacts_cost=<time on / time off>``.
 
 Usage: ``python bench/bench_sim.py [--batches 1 10 150 1500] [--duration 30]
-[--perception-batch 150]``
+[--perception-batch 150]`` (the batch of the perception and contacts rows)
 """
 
 from __future__ import annotations
@@ -88,10 +90,15 @@ def rate(fn, agent_steps: int, repeat: int = 1) -> float:
 
 
 def perception_cost(sc: Scenario, batch: int, repeat: int = 5) -> tuple[float, float]:
-    """Agent-steps per second without and with :data:`CAMERA`, the two measured
+    """Agent-steps per second without and with :data:`CAMERA` (:func:`on_off_rates`)."""
+    return on_off_rates(sc, CAMERA, batch, repeat)
+
+
+def on_off_rates(sc: Scenario, overrides: dict, batch: int, repeat: int = 5) -> tuple[float, float]:
+    """Agent-steps per second of ``sc`` and of ``sc`` with ``overrides``, the two measured
     alternately (best of ``repeat`` each) so that a busy machine slows both alike;
     with 3 repeats a 0.5-s run's jitter moved the ratio by ±0.15 between runs."""
-    on = sc.with_overrides(CAMERA)
+    on = sc.with_overrides(overrides)
     simulator.simulate(on, [0], record=False)  # compile / load the kernel cache
     best = {False: math.inf, True: math.inf}
     for _ in range(repeat):
@@ -139,6 +146,9 @@ def main() -> None:
     off, on = perception_cost(sc, args.perception_batch)
     rows += [("numba, perception off", args.perception_batch, off),
              ("numba, perception on", args.perception_batch, on)]  # fmt: skip
+    free, touching = on_off_rates(sc, {"contacts": True}, args.perception_batch)
+    rows += [("numba, contacts off", args.perception_batch, free),
+             ("numba, contacts on", args.perception_batch, touching)]  # fmt: skip
 
     print(f"100-robot combined scenario, {steps} steps/run for numba; agent-steps per second")
     print(f"{'implementation':<22}{'runs B':>8}{'agent-steps/s':>16}{'vs loop':>10}")
@@ -147,7 +157,7 @@ def main() -> None:
     print(f"perception on: {CAMERA}")
     print(
         f"RESULT agent_steps_per_s={best:.3g} speedup_vs_loop={best / loop:.0f} "
-        f"perception_cost={off / on:.2f}"
+        f"perception_cost={off / on:.2f} contacts_cost={free / touching:.2f}"
     )
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.contacts import contact_geometry, resolve_contacts
+from aes_ros.contacts import contact_geometry, resolve_contacts, resolve_listed
 from aes_ros.mona.geometry import MonaGeometry
 
 R = MonaGeometry().body_radius
@@ -90,14 +90,22 @@ def test_no_overlap_leaves_positions_untouched_bit_for_bit() -> None:
     grid = np.stack(np.meshgrid(np.arange(10), np.arange(10)), -1).reshape(-1, 2) * 0.2
     pos = grid + rng.uniform(-0.01, 0.01, grid.shape)
     head = rng.uniform(-math.pi, math.pi, 100)
-    before = pos.copy()
     w, c, b = contact_geometry((-1.0, 3.0, -1.0, 3.0), [(5.0, 5.0, 0.1)], [(6, 7, 6, 7)])
-    found, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
-    assert found == 0
-    assert pos.tobytes() == before.tobytes()
-    ctr = centres(pos, head)
-    d = np.linalg.norm(ctr[:, None] - ctr[None], axis=-1)[np.triu_indices(100, 1)]
-    assert closest == pytest.approx(d.min(), rel=1e-12)
+    for near in (False, True):  # no body near another; one pair 1 cm from touching
+        if near:
+            pos[1] = pos[0] + A * np.array([np.cos(head[0]), 0.0]) + [0.09, 0.0]
+            pos[1] -= A * np.array([np.cos(head[1]), np.sin(head[1])])
+            pos[1, 1] += A * np.sin(head[0])
+        before = pos.copy()
+        found, closest = resolve_contacts(pos, head, R, A, w, c, b, 4)
+        assert found == 0
+        assert pos.tobytes() == before.tobytes()
+        ctr = centres(pos, head)
+        d = np.linalg.norm(ctr[:, None] - ctr[None], axis=-1)[np.triu_indices(100, 1)]
+        if near:  # the smallest distance, exact when below 3r
+            assert closest == pytest.approx(0.09, abs=1e-12) and d.min() == pytest.approx(0.09)
+        else:  # nothing within 3r: inf
+            assert math.isinf(closest) and d.min() > 3 * R
 
 
 def test_same_input_same_bits() -> None:
@@ -115,3 +123,29 @@ def test_same_input_same_bits() -> None:
 def test_bad_walls_are_refused() -> None:
     with pytest.raises(ValueError, match="walls"):
         contact_geometry((0.0, 1.0, 2.0))
+
+
+def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one() -> None:
+    """The kernel keeps its candidate pairs over steps (resolve_listed); the bridge calls
+    resolve_contacts, which makes them afresh: both must move the robots alike, bit for bit."""
+    rng = np.random.default_rng(5)
+    pos = rng.uniform(-0.4, 0.4, (60, 2))
+    head = rng.uniform(-math.pi, math.pi, 60)
+    w, c, b = contact_geometry((-0.5, 0.5, -0.5, 0.5), [(0.0, 0.0, 0.05)], [(0.2, 0.3, 0.2, 0.3)])
+    kept, fresh = pos.copy(), pos.copy()
+    ref_x, ref_y = np.full(60, np.inf), np.full(60, np.inf)
+    pairs = np.empty((0, 2), np.int64)
+    rebuilt = 0
+    for _ in range(100):
+        step = 0.004 * np.stack([np.cos(head), np.sin(head)], -1)  # 4 mm towards the heading
+        kept += step
+        fresh += step
+        cx = kept[:, 0] + A * np.cos(head)
+        cy = kept[:, 1] + A * np.sin(head)
+        before = pairs
+        k1, d1, pairs = resolve_listed(kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y)
+        rebuilt += pairs is not before
+        k2, d2 = resolve_contacts(fresh, head, R, A, w, c, b, 8)
+        assert (k1, d1) == (k2, d2)
+        assert kept.tobytes() == fresh.tobytes()
+    assert 1 < rebuilt < 100  # the list was kept for some steps and remade for others
