@@ -3,24 +3,28 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import signal
 import time
+from importlib import resources
 
 import numpy as np
 import pytest
+import yaml
 from geometry_msgs.msg import Twist
 from helpers.probe import STREAM, Probe
 from nav_msgs.msg import Odometry
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import SetBool, Trigger
+from visualization_msgs.msg import MarkerArray
 
 from aes_ros.model import robot_command, unicycle_step
 from aes_ros.ros import interface as names
 from aes_ros.ros.conversions import quaternion_to_yaw, stamp_to_ns, unicycle_twist
 from aes_ros.ros.interface import robot_topic
-from aes_ros.ros.qos import COMMAND, SENSOR
+from aes_ros.ros.qos import COMMAND, DISPLAY, SENSOR
 from aes_ros.scenario import load
 from aes_ros.simulator import simulate
 
@@ -186,9 +190,11 @@ def test_reset_and_pause_services(spawn, probe):
     probe.sample_poses(2)
     start_pos, _ = load("combined").with_robots(2).initial_state(1)
     probe.wait(lambda: len(probe.times) >= 2, 20.0, "/swarm/poses")
-    bridge.send(0, 0.1, 0.3)
-    time.sleep(1.0)
-    assert np.linalg.norm(probe.sample()[1][0] - start_pos[0]) > 0.05
+    # a command may arrive before the bridge's subscription has matched: sent until it moves
+    probe.until(
+        lambda: bridge.send(0, 0.1, 0.3),
+        lambda: np.linalg.norm(probe.sample()[1][0] - start_pos[0]) > 0.05,
+    )
 
     # pause: the clock and the robots stop; resume: both go on
     result = probe.call(SetBool, names.SIM_PAUSE, SetBool.Request(data=True), SERVICE_TIMEOUT)
@@ -249,13 +255,35 @@ def test_runtime_parameters_and_dynamic_mode(spawn, probe):
     assert bridge.odom[-1].twist.twist.linear.x == pytest.approx(0.1, abs=0.02)
 
 
-def test_lockstep_bridge_with_the_control_law_equals_the_offline_simulator(spawn, probe):
+def colliding_scenario(path) -> str:
+    """A 2 x 2 combined sheet whose bodies overlap from the start (spacing 0.07 m < 2r),
+    driven into a wall, with a post beside its path and contacts on; written to ``path``."""
+    data = yaml.safe_load(
+        resources.files("aes_ros").joinpath("scenarios/combined.yaml").read_text()
+    )
+    data.update(rows=2, cols=2, spacing=0.07, contacts=True, duration=10.0)
+    data.update(walls=[-0.28, 0.5, -0.5, 0.5], obstacles=[{"circle": [-0.13, -0.2, 0.03]}])
+    path.write_text(yaml.safe_dump(data))
+    return str(path)
+
+
+def test_lockstep_bridge_with_the_control_law_equals_the_offline_simulator(spawn, probe, tmp_path):
     """The test plays 4 noise-free robots with aes_ros.model.robot_command: 10 s in lockstep
-    end where the offline simulator ends from the same seed."""
-    scenario = load("combined").with_robots(4).with_overrides({"duration": 10.0})
+    end where the offline simulator ends from the same seed, with bodies that collide
+    with each other and a wall (contacts on); /sim/stats counts the contacts, and the
+    dashboard's /swarm/markers shows the wall and the post."""
+    path = colliding_scenario(tmp_path / "colliding.yaml")
+    scenario = load(path).with_robots(4)
+    spawn.start(
+        "aes-dashboard", "--ros-args", "-p", f"scenario:={path}", "-p", "num_robots:=4",
+        "-p", "port:=0", name="dashboard",
+    )  # fmt: skip
+    markers: list[MarkerArray] = []
+    probe.node.create_subscription(MarkerArray, names.MARKERS, markers.append, DISPLAY)
     _, bridge = start_bridge(
         spawn, probe, 4,
-        "num_robots:=4", "seed:=7", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
+        f"scenario:={path}", "num_robots:=4", "seed:=7", "lockstep:=true",
+        "real_time_factor:=0.0", "clip:=false", "lockstep_timeout:=30.0",
     )  # fmt: skip
     _, neighbors, rest = scenario.sheet()
     states: dict[int, np.ndarray] = {}
@@ -265,6 +293,8 @@ def test_lockstep_bridge_with_the_control_law_equals_the_offline_simulator(spawn
         if step in states:
             return  # a re-published state was answered already
         states[step] = pos
+        if step >= scenario.n_steps:
+            return  # the run is over: the bridge waits (and counts no contact)
         command = dataclasses.replace(scenario.command, center=tuple(pos.mean(axis=0)))
         for i in range(4):
             mine = neighbors[i] >= 0
@@ -282,9 +312,38 @@ def test_lockstep_bridge_with_the_control_law_equals_the_offline_simulator(spawn
     probe.on_poses = control
     probe.sample_poses(4)
     probe.wait(lambda: scenario.n_steps in states, 60.0, f"step {scenario.n_steps}")
-    offline = simulate(scenario, 7, noise=False).positions[0]
-    assert np.linalg.norm(offline[-1] - offline[0], axis=-1).min() > 0.3  # the swarm moved
-    # The contract is < 1 mm; the bridge integrates the very same Euler step, so
-    # (as measured) the positions agree to rounding.
-    np.testing.assert_allclose(states[scenario.n_steps], offline[-1], atol=1e-9)
-    np.testing.assert_allclose(states[100], offline[100], atol=1e-9)
+    # (the bridge now waits for commands that do not come: its figures stay those of the run)
+    stats = json.loads(
+        probe.call(Trigger, names.SIM_STATS, Trigger.Request(), SERVICE_TIMEOUT).message
+    )
+    # the numpy backend: the bridge's very Euler step and contact resolution (the numba
+    # kernel's own arithmetic rounds differently, and contacts carry that on)
+    offline = simulate(scenario, 7, noise=False, backend="numpy")
+    assert np.linalg.norm(offline.positions[0, -1] - offline.positions[0, 0], axis=-1).min() > 0.1
+    # The contract is < 1 mm; the bridge does the same Euler step and contact resolution,
+    # so (as measured) the positions agree to rounding.
+    np.testing.assert_allclose(states[scenario.n_steps], offline.positions[0, -1], atol=1e-12)
+    np.testing.assert_allclose(states[100], offline.positions[0, 100], atol=1e-12)
+
+    # /sim/stats: the contacts of these steps, the closest bodies no closer than 2r - 1 mm
+    assert offline.contacts[0].sum() > scenario.n_steps  # they touched all along
+    assert stats["contacts"] == offline.contacts[0].sum()
+    assert stats["contacts_per_s"] == pytest.approx(stats["contacts"] / stats["sim_s"])
+    assert stats["min_centre_distance_m"] == pytest.approx(np.nanmin(offline.min_distance[0, 1:]))
+    assert stats["min_centre_distance_m"] > 0.08 - 0.001
+
+    # the dashboard draws the wall and the post in /swarm/markers
+    probe.wait(
+        lambda: any(m.ns == "obstacles" for a in markers for m in a.markers), 30.0, "markers"
+    )
+    drawn = markers[-1].markers
+    (wall,) = [m for m in drawn if m.ns == "walls"]
+    assert {(p.x, p.y) for p in wall.points} == {
+        (-0.28, -0.5),
+        (0.5, -0.5),
+        (0.5, 0.5),
+        (-0.28, 0.5),
+    }
+    (post,) = [m for m in drawn if m.ns == "obstacles"]
+    assert (post.pose.position.x, post.pose.position.y) == (-0.13, -0.2)
+    assert post.scale.x == pytest.approx(0.06)
