@@ -78,3 +78,21 @@ def _static(client: int, shape: int, visual: int, centre: list[float]) -> int:
         basePosition=centre,
         physicsClientId=client,
     )
+
+
+def solid_outlines(
+    walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray, points: int = 48
+) -> list[np.ndarray]:
+    """The bottom and top outlines (K, 3) [m] of every wall box, circle (``points`` per
+    circle) and box, as the bodies of :func:`add_arena` stand: what a camera draws as the
+    hull of their projections."""
+    out = []
+    for x0, x1, y0, y1 in np.vstack([wall_boxes(walls), boxes.reshape(-1, 4)]).tolist():
+        out.append(np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]))
+    a = np.linspace(0.0, 2.0 * np.pi, points, endpoint=False)
+    for x, y, r in circles.reshape(-1, 3).tolist():
+        out.append(np.stack([x + r * np.cos(a), y + r * np.sin(a)], axis=-1))
+    return [
+        np.concatenate([np.c_[ring, np.zeros(len(ring))], np.c_[ring, np.full(len(ring), HEIGHT)]])
+        for ring in out
+    ]

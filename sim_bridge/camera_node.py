@@ -35,7 +35,8 @@ from sensor_msgs.msg import CameraInfo, Image
 from aes_ros.arena import arena_or_none
 from aes_ros.arena_layout import CalibrationError, load_layout
 from aes_ros.camera import PinholeCamera, covering_height, overhead_camera
-from aes_ros.params import ParameterError
+from aes_ros.obstacles import contact_arrays
+from aes_ros.params import PARAMS, ParameterError
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import decode_pose_array, encode_image
@@ -71,6 +72,9 @@ class ArenaCameraNode(Node):
     layout : str, an arena layout file (``arena.yaml``) whose reference markers lie
         on the floor, as in a lab; empty for none.
     seed : int, the noise's and the drops' seed, default 0.
+    walls : str [m], the scenario's walls ``x_min,x_max,y_min,y_max``; empty for none.
+    obstacles : str [m], its obstacles ``circle:x,y,r;box:x_min,x_max,y_min,y_max``
+        (:mod:`aes_ros.obstacles`); empty for none. Both drawn as dark solids.
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -111,6 +115,12 @@ class ArenaCameraNode(Node):
             "layout", "", rp.text_descriptor("arena layout file with reference markers", **ro)
         ).value
         seed = self.declare_parameter("seed", 0, rp.int_descriptor("noise seed", 0, 2**31 - 1))
+        solids = {}
+        for name in ("walls", "obstacles"):
+            text = f"{PARAMS[name].description} ({PARAMS[name].allowed()})"
+            value = self.declare_parameter(name, "", rp.text_descriptor(text, **ro)).value
+            solids[name] = PARAMS[name].validate(value)  # ParameterError names the field
+        walls, circles, boxes = contact_arrays(solids)
         if arena_or_none(list(arena)) is None:  # checked as the supervisor's arena is
             raise ParameterError("arena: the camera needs the floor it sees, four numbers")
         if len(distortion) != 5:
@@ -126,6 +136,9 @@ class ArenaCameraNode(Node):
             noise_sigma=noise,
             blur_sigma=blur,
             rng=seed.value,
+            walls=walls,
+            circles=circles,
+            boxes=boxes,
         )
         self.rng = np.random.default_rng(seed.value + 1)
         self.period_ns = round(1e9 / rate)

@@ -2,16 +2,18 @@
 
 What a real camera above the arena would see, drawn through the camera model
 of :mod:`aes_ros.camera` (so the tracker is tested against the geometry it
-assumes, height parallax included): a mid-grey floor, the fixed reference
-markers lying on it, and each robot as a dark Ø 80 mm cylinder with its marker
-on top (:mod:`aes_ros.markers`). The imperfections a real camera has are
-options: lens distortion (the camera's ``dist``), Gaussian blur and Gaussian
-pixel noise, the noise drawn from a ``numpy.random.Generator``.
+assumes, height parallax included): a mid-grey floor, the scenario's walls and
+obstacles as dark solids without a marker (:mod:`sim_bridge.arena`; nothing a tracker
+takes for a robot), the fixed reference markers (drawn over them: a lab puts its
+references where the camera sees them), and each robot as a dark Ø 80 mm cylinder
+with its marker on top (:mod:`aes_ros.markers`). The imperfections a real camera has
+are options: lens distortion (the camera's ``dist``), Gaussian blur and Gaussian pixel
+noise, the noise drawn from a ``numpy.random.Generator``.
 
 How it is fast (``bench/bench_camera_render.py`` measures it against
 pybullet's own camera):
 
-- the floor and the reference markers never move: drawn once;
+- the floor, the reference markers, walls and obstacles never move: drawn once;
 - each robot's top (body, white sticker, marker) is a pre-rendered patch per
   id, warped by its homography into only its bounding box
   (``cv2.warpPerspective`` on the ROI) and alpha-blended there;
@@ -24,7 +26,7 @@ pybullet's own camera):
   ``rng.standard_normal`` per frame costs 20-60 ms at these sizes, more than
   everything else together). ``fresh_noise=True`` draws every frame anew.
 
-Drawing order: the floor, the references, every robot's body silhouette
+Drawing order: the floor, walls and obstacles, the references, every robot's body silhouette
 (the hull of its projected top and bottom circles), then every robot's top,
 the highest surface, so a neighbour's side never covers a marker.
 """
@@ -39,6 +41,7 @@ import cv2
 import numpy as np
 
 from aes_ros.camera import PinholeCamera
+from aes_ros.contacts import contact_geometry
 from aes_ros.markers import (
     DICTIONARY,
     N_IDS,
@@ -48,6 +51,7 @@ from aes_ros.markers import (
     marker_corners,
     marker_image,
 )
+from sim_bridge.arena import solid_outlines
 from sim_bridge.mona import MonaGeometry
 
 #: Points per circle of a body's silhouette.
@@ -70,6 +74,7 @@ class Shades:
 
     floor: int = 128
     body: int = 45
+    obstacle: int = 60
     white: int = 235
     black: int = 20
 
@@ -215,6 +220,8 @@ class CameraRenderer:
         noise drawn once (exact, but 20-60 ms per frame).
     shades : grey levels of floor, body, white and black.
     dictionary_id : the ArUco dictionary (the convention's by default).
+    walls, circles, boxes : the arena's walls (4,) or None, circles (M, 3) and boxes
+        (L, 4) [m], as :func:`aes_ros.contacts.resolve_contacts` takes them.
     """
 
     def __init__(
@@ -230,6 +237,9 @@ class CameraRenderer:
         fresh_noise: bool = False,
         shades: Shades = Shades(),
         dictionary_id: int = DICTIONARY,
+        walls: np.ndarray | None = None,
+        circles: np.ndarray | None = None,
+        boxes: np.ndarray | None = None,
     ) -> None:
         if not (noise_sigma >= 0.0 and blur_sigma >= 0.0):
             raise ValueError("noise_sigma, blur_sigma: expected >= 0")
@@ -275,6 +285,7 @@ class CameraRenderer:
         self._ideal_background = np.full(
             (self._ideal.height, self._ideal.width), shades.floor, np.uint8
         )
+        self._draw_solids(*contact_geometry(walls, circles, boxes))
         for ref in references:
             if not 0 <= ref.marker_id < self._n_ids:
                 raise ValueError(f"reference marker_id: expected 0 … {self._n_ids - 1}")
@@ -289,6 +300,18 @@ class CameraRenderer:
         self._noise: tuple[np.ndarray, np.ndarray] | None = None
         if self.noise_sigma > 0.0 and not fresh_noise:
             self._noise = self._draw_noise(2 * camera.width * camera.height)
+
+    def _draw_solids(self, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> None:
+        """Walls and obstacles into the background: each the hull of its projected outlines."""
+        big = float(1 << _SHIFT)
+        for outline in solid_outlines(walls, circles, boxes):
+            px = self._ideal.project(outline)
+            if not np.isfinite(px).all():
+                continue  # reaches behind the camera: not drawn
+            hull = cv2.convexHull(np.rint(px * big).astype(np.int32))
+            cv2.fillConvexPoly(
+                self._ideal_background, hull, self.shades.obstacle, cv2.LINE_AA, _SHIFT
+            )
 
     def _texels_per_cell(self, size: float, z: float) -> tuple[int, float]:
         """Patch texels per marker cell (about ``_OVERSAMPLE`` per image pixel at the image

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from aes_ros.obstacles import format_obstacles
 from aes_ros.ros import discovery as dds
 from aes_ros.ros import interface as names
 from aes_ros.ros.launch.config import LaunchConfig
@@ -135,6 +136,10 @@ def tracking_commands(config: LaunchConfig, layout_file: Path) -> list[ProcessSp
         "seed": int(config.seed),
         "use_sim_time": config.sim_time,
     }
+    if config.scenario.walls:  # the scenario's walls and obstacles in the picture
+        camera["walls"] = ",".join(repr(float(v)) for v in config.scenario.walls)
+    if config.scenario.obstacles:
+        camera["obstacles"] = format_obstacles(config.scenario.obstacles)
     return [
         ProcessSpec(names.CAMERA_NODE, ["aes-arena-camera", *ros_args(camera)]),
         ProcessSpec(names.TRACKER_NODE, ["aes-tracker", *ros_args(tracker)]),
