@@ -17,6 +17,8 @@ Usage::
     python bench/bench_ros.py --robots 1000 --rates 20 --discovery simple,server --runs 3 \
         --no-baseline                               # discovery modes side by side (~15 min)
     python bench/bench_ros.py --physics             # only the bridge physics line
+    python bench/bench_ros.py --robots 100 --rates 50 --contacts off,on --runs 3 \
+        --no-baseline                               # contacts' cost, off and on interleaved
 
 Writes ``bench_ros.csv`` and ``bench_ros.png`` to ``--out`` (default ``out/bench_ros``).
 """
@@ -38,6 +40,7 @@ from aes_ros.ros.discovery import SERVER_PROCESS
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_sim import direct_port  # a sibling script, not a package
+from ros_contacts import contacts_lines, contacts_modes
 from ros_rows import Row, discovery_lines, find_row, goal_lines, plot, print_table, write_csv
 
 CLK_TCK = os.sysconf("SC_CLK_TCK")
@@ -106,12 +109,15 @@ def measure(
     window: float,
     discovery: str = "auto",
     run: int = 1,
+    contacts: bool | None = None,
+    bodies: dict | None = None,
 ) -> Row:
     from aes_ros.ros.launch import LaunchConfig, Launcher
     from aes_ros.ros.launch.config import resolved_discovery
     from aes_ros.ros.launch.layout import resolved_layout
 
-    sc = scenario_mod.load("combined", {"dt": 1.0 / rate}).with_robots(robots)
+    overrides = {"dt": 1.0 / rate} | ({} if contacts is None else {"contacts": contacts})
+    sc = scenario_mod.load("combined", overrides).with_robots(robots)
     config = LaunchConfig(
         sc, label="bench", layout=layout, neighbor_source=source, mode="kinematic",
         duration=0.0, start_timeout=600.0, discovery=discovery,
@@ -135,6 +141,8 @@ def measure(
         wall = time.monotonic() - w0
         cpu = {name: 100.0 * (cpu_seconds(pid) - cpu0[name]) / wall for name, pid in pids.items()}
         memory = sum(pss_mb(pid) for name, pid in pids.items())
+        if bodies is not None:  # what /sim/stats says of the bodies in the window
+            bodies.update({k: stats.get(k) for k in ("contacts_per_s", "min_centre_distance_m")})
     finally:
         launcher.stop()
         launcher.cleanup(True)
@@ -287,10 +295,18 @@ def main(argv: list[str] | None = None) -> int:
         help="runs of the whole grid, the modes interleaved (default 1)",
     )  # fmt: skip
     add_deprecated(parser, "--repeat", "--runs")
+    parser.add_argument(
+        "--contacts", default="",
+        help="off, on or off,on (measured side by side, interleaved); default: the scenario's",
+    )  # fmt: skip
     parser.add_argument("--warmup", type=float, default=3.0, help="wall seconds before measuring")
     parser.add_argument("--window", type=float, default=10.0, help="wall seconds measured")
     parser.add_argument("--out", type=Path, default=Path("out/bench_ros"))
     args = parser.parse_args(argv)
+    try:
+        contacts = contacts_modes(args.contacts)
+    except ValueError as exc:
+        parser.error(str(exc))
 
     rtf = physics_rtf(seconds=2.0 if args.quick else 10.0)
     line = f"physics: 100 robots, dynamic mode, 240 Hz, no ROS: RTF {rtf:.2f}"
@@ -319,17 +335,25 @@ def main(argv: list[str] | None = None) -> int:
         tqdm = None
     modes = args.discovery.split(",")
     runs = [
-        (run, *config, mode) for run in range(1, args.runs + 1) for config in grid for mode in modes
+        (run, *config, mode, on)
+        for run in range(1, args.runs + 1)
+        for config in grid
+        for mode in modes
+        for on in contacts
     ]
     configs = tqdm(runs, desc="configurations", file=sys.stderr) if tqdm else runs
-    for run, n, rate, source, layout, mode in configs:
+    measured = []  # (row, contacts, what /sim/stats said of the bodies)
+    for run, n, rate, source, layout, mode, on in configs:
+        bodies: dict = {}
         try:
-            row = measure(n, rate, source, layout, args.warmup, args.window, mode, run)
+            row = measure(n, rate, source, layout, args.warmup, args.window, mode, run, on, bodies)
         except Exception as exc:  # one failing configuration must not lose the others
             print(f"{n} robots {rate} Hz {source} {layout} {mode}: FAILED: {exc}", flush=True)
             continue
         rows.append(row)
-        print("  ".join(row.cells()), flush=True)
+        measured.append((row, on, bodies))
+        said = "" if on is None else f"  contacts {'on' if on else 'off'}"
+        print("  ".join(row.cells()) + said, flush=True)
     if not rows:
         print("RESULT failed: no configuration measured")
         return 1
@@ -395,6 +419,9 @@ def main(argv: list[str] | None = None) -> int:
     if side_by_side := discovery_lines(rows):
         print("\ndiscovery modes side by side (issue #24):")
         print("\n".join(side_by_side))
+    if with_and_without := contacts_lines(measured):
+        print("\ncontacts off and on side by side (issue #34):")
+        print("\n".join(with_and_without))
     write_csv(rows, args.out / "bench_ros.csv")
     plot(rows, args.out / "bench_ros.png")
     (args.out / "physics.txt").write_text(line + "\n" + machine + "\n")
