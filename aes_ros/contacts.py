@@ -13,6 +13,9 @@ gives the same bits as a list made afresh.
 
 Every loop runs in a fixed order (ties in robot index order), so the result is
 bit-reproducible; positions without an overlap are not written to.
+
+numba's cache of :func:`aes_ros.kernel.advance` holds this module's code compiled in and
+does not notice edits here: after one, touch ``aes_ros/kernel.py``.
 """
 
 from __future__ import annotations

@@ -56,8 +56,9 @@ def crowded(**overrides: object) -> scenario.Scenario:
     )
 
 
-def test_both_backends_resolve_contacts_alike() -> None:
-    sc = crowded()
+@pytest.mark.parametrize("perceived", [{}, REFERENCE.PERCEIVED])
+def test_both_backends_resolve_contacts_alike(perceived: dict) -> None:
+    sc = crowded(**perceived)
     fast = simulator.simulate(sc, [0, 1], backend="numba")
     slow = simulator.simulate(sc, [0, 1], backend="numpy")
     np.testing.assert_allclose(fast.positions, slow.positions, atol=1e-9)
