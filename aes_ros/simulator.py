@@ -108,7 +108,8 @@ class SimResult:
     @property
     def contacts_per_s(self) -> np.ndarray:
         """Contacts per second of sim time over the run, (B,) [1/s]."""
-        return self.contacts[:, 1:].sum(axis=-1) / max(self.times[-1], self.times[1])
+        duration = self.times[-1]
+        return self.contacts[:, 1:].sum(axis=-1) / duration if duration > 0 else self.contacts[:, 0]
 
     @property
     def centroid(self) -> np.ndarray:
