@@ -214,7 +214,7 @@ TOPICS: tuple[Endpoint, ...] = (
     Endpoint(TOTAL_FORCE, "std_msgs/msg/Float64", "supervisor", "dashboard, recorder",
              "total elastic force F (E9)"),
     Endpoint(MARKERS, "visualization_msgs/msg/MarkerArray", "dashboard", "RViz2, Foxglove",
-             "the swarm drawn: robots, springs, centroid trail"),
+             "the swarm drawn: robots, springs, centroid trail, walls and obstacles"),
     Endpoint(CAMERA_IMAGE, "sensor_msgs/msg/Image", "simulated camera or a real one",
              "tracker", "mono8 frames, stamp = exposure time"),
     Endpoint(CAMERA_INFO, "sensor_msgs/msg/CameraInfo", "simulated camera or a real one",
@@ -235,5 +235,6 @@ SERVICES: tuple[Endpoint, ...] = (
     Endpoint(SIM_PAUSE, "std_srvs/srv/SetBool", "bridge", "dashboard",
              "pause (true) or resume (false) the simulation"),
     Endpoint(SIM_STATS, "std_srvs/srv/Trigger", "bridge", "launcher, benchmarks",
-             "control-loop figures since the previous call, as JSON in message"),
+             "control-loop figures, contacts per second and the closest bodies since the "
+             "previous call, as JSON in message"),
 )  # fmt: skip

@@ -11,6 +11,7 @@ import pytest
 
 from aes_ros.contacts import ITERATIONS, resolve_contacts
 from aes_ros.model import unicycle_step
+from sim_bridge.arena import HEIGHT, wall_boxes
 from sim_bridge.world import World
 
 MODES = ["kinematic", "dynamic"]
@@ -126,9 +127,14 @@ def test_walls_and_obstacles_are_static_bodies_in_pybullet():
         assert len(world.arena_bodies) == 6  # four walls, a circle, a box
         for body in world.arena_bodies:
             assert pb.getDynamicsInfo(body, -1, physicsClientId=world._client)[0] == 0.0
-        # the right wall's inner face is on x = 0.5
-        low, _ = pb.getAABB(world.arena_bodies[1], physicsClientId=world._client)
-        assert low[0] == pytest.approx(0.5, abs=1e-3)
+        # each wall's inner face on the rectangle, the corners closed, all HEIGHT tall
+        boxes = wall_boxes(walls)
+        np.testing.assert_array_equal(boxes[:, [1, 0, 3, 2]].diagonal(), walls)
+        assert boxes[0, 2] < walls[2] and boxes[0, 3] > walls[3]  # the left one spans corners
+        for body, box in zip(world.arena_bodies[:4], boxes, strict=True):
+            low, high = pb.getAABB(body, physicsClientId=world._client)
+            np.testing.assert_allclose([low[0], high[0], low[1], high[1]], box, atol=1e-3)
+            assert high[2] == pytest.approx(HEIGHT, abs=1e-3)
 
 
 def test_bad_walls_are_rejected():
