@@ -19,10 +19,17 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario, simulator
+from aes_ros.params import PARAMS
 
 PATH = Path(__file__).with_name("contacts_off_reference.npz")
 SEEDS = (0, 1)
-SMALL = {"rows": 3, "cols": 4, "duration": 2.0}
+#: contacts off whatever its default (the code before contacts has no such parameter)
+SMALL = {
+    "rows": 3,
+    "cols": 4,
+    "duration": 2.0,
+    **({"contacts": False} if "contacts" in PARAMS else {}),
+}
 PERCEIVED = {
     "perception_sigma": 0.01,
     "perception_delay": 0.1,

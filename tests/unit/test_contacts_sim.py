@@ -105,7 +105,7 @@ def test_hundred_robots_at_50_hz_never_overlap_deeper_than_a_millimetre() -> Non
     metrics.csv columns); without, robots cross each other, so the test can fail."""
     sc = scenario.load("combined", {"dt": 0.02, "duration": 30.0})
     on = simulator.simulate(sc.with_overrides({"contacts": True}), [0])
-    off = simulator.simulate(sc, [0])
+    off = simulator.simulate(sc.with_overrides({"contacts": False}), [0])
     for result in (on, off):
         assert result.positions.shape == (1, 1501, 100, 2)
     _, closest = contacts_over_time(on.positions, on.headings, R, A)

@@ -19,9 +19,9 @@ LINE = "circle:1,0.5,0.1;box:2,2.2,-1,1"
 PARSED = (("circle", (1.0, 0.5, 0.1)), ("box", (2.0, 2.2, -1.0, 1.0)))
 
 
-def test_defaults_are_off_and_empty() -> None:
+def test_no_walls_and_no_obstacles_by_default() -> None:
     sc = scenario.load("combined")
-    assert sc.contacts is False
+    assert sc.contacts is PARAMS["contacts"].default
     walls, circles, boxes = contact_arrays(sc.values)
     assert walls.shape == (0,) and circles.shape == (0, 3) and boxes.shape == (0, 4)
 
