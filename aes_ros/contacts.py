@@ -56,28 +56,49 @@ def _move(
 @njit(cache=True)
 def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
     """The pairs (K, 2) int64 (i, j), i < j, whose centres cx, cy (N,) [m] are closer
-    than ``cutoff`` [m], in lexicographic order; found in a grid of cells of that side."""
+    than ``cutoff`` [m], in lexicographic order; found in a grid of cells of that side
+    (larger when the robots spread so far that there would be more cells than 3N).
+    Robots with a non-finite centre are in no pair."""
     n = cx.shape[0]
-    x0 = cx.min()
-    y0 = cy.min()
-    nx = int((cx.max() - x0) / cutoff) + 1
-    ny = int((cy.max() - y0) / cutoff) + 1
-    start = np.zeros(nx * ny + 1, np.int64)
-    home = np.empty(n, np.int64)
+    x0 = np.inf
+    y0 = np.inf
+    x1 = -np.inf
+    y1 = -np.inf
     for i in range(n):
-        home[i] = int((cx[i] - x0) / cutoff) * ny + int((cy[i] - y0) / cutoff)
-        start[home[i] + 1] += 1
+        if math.isfinite(cx[i]) and math.isfinite(cy[i]):
+            x0 = min(x0, cx[i])
+            x1 = max(x1, cx[i])
+            y0 = min(y0, cy[i])
+            y1 = max(y1, cy[i])
+    if x0 > x1:
+        return np.empty((0, 2), np.int64)
+    wide = x1 - x0
+    high = y1 - y0
+    cell = max(cutoff, math.sqrt(wide * high / n), max(wide, high) / n)
+    nx = int(wide / cell) + 1
+    ny = int(high / cell) + 1
+    start = np.zeros(nx * ny + 1, np.int64)
+    home = np.full(n, -1, np.int64)
+    for i in range(n):
+        if math.isfinite(cx[i]) and math.isfinite(cy[i]):
+            home[i] = min(int((cx[i] - x0) / cell), nx - 1) * ny + min(
+                int((cy[i] - y0) / cell), ny - 1
+            )
+            start[home[i] + 1] += 1
     for k in range(nx * ny):
         start[k + 1] += start[k]
     fill = start[:-1].copy()
     members = np.empty(n, np.int64)
     for i in range(n):  # a counting sort: each cell's robots in index order
-        members[fill[home[i]]] = i
-        fill[home[i]] += 1
+        if home[i] >= 0:
+            members[fill[home[i]]] = i
+            fill[home[i]] += 1
     cutoff2 = cutoff * cutoff
     keys = np.empty(2 * n + 8, np.int64)
     count = 0
     for i in range(n):
+        if home[i] < 0:
+            continue
         ix = home[i] // ny
         iy = home[i] - ix * ny
         # half the 3 x 3 stencil, so each pair is met once: the own cell (j > i), the
@@ -126,7 +147,7 @@ def _separate_listed(
         dx = cx[j] - cx[i]
         dy = cy[j] - cy[i]
         d2 = dx * dx + dy * dy
-        if d2 >= limit2:
+        if not d2 < limit2:  # also a NaN
             continue
         found += 1
         d = math.sqrt(d2)
@@ -153,10 +174,12 @@ def _push_out(
     boxes: np.ndarray,
 ) -> int:
     """Move every body out of the obstacles and inside the walls (walls last).
-    Returns the overlaps found."""
+    Returns the overlaps found; a body with a non-finite centre is left as it is."""
     n = cx.shape[0]
     found = 0
     for i in range(n):
+        if not (math.isfinite(cx[i]) and math.isfinite(cy[i])):
+            continue
         for c in range(circles.shape[0]):
             dx = cx[i] - circles[c, 0]
             dy = cy[i] - circles[c, 1]
@@ -233,7 +256,7 @@ def _stale(
     for i in range(cx.shape[0]):
         dx = cx[i] - x_ref[i]
         dy = cy[i] - y_ref[i]
-        if dx * dx + dy * dy > skin * skin:
+        if not dx * dx + dy * dy <= skin * skin:  # also a NaN
             return True
     return False
 
@@ -284,7 +307,9 @@ def resolve_listed(
     for e in range(pairs.shape[0]):
         dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
         dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
-        best = min(best, dx * dx + dy * dy)
+        d2 = dx * dx + dy * dy
+        if d2 < best:
+            best = d2
     close = CLOSE * radius
     return contacts, (math.sqrt(best) if best < close * close else np.inf), pairs
 
@@ -387,7 +412,8 @@ def measure_contacts(
         dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
         dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
         d2 = dx * dx + dy * dy
-        best = min(best, d2)
+        if d2 < best:
+            best = d2
         if d2 <= reach * reach:
             found += 1
     for i in range(n):

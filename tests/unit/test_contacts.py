@@ -149,3 +149,18 @@ def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one() -> None:
         assert (k1, d1) == (k2, d2)
         assert kept.tobytes() == fresh.tobytes()
     assert 1 < rebuilt < 100  # the list was kept for some steps and remade for others
+
+
+def test_robots_far_apart_or_not_finite_are_handled() -> None:
+    """A run whose gains diverge: robots kilometres apart or at NaN/inf. The grid stays
+    small (no allocation of (distance / 4r)² cells), the finite robots still separate and
+    the non-finite ones are left as they are."""
+    pos = np.array([[0.0, 0.0], [0.05, 0.0], [1e12, -1e12], [np.nan, 0.0], [np.inf, 1.0]])
+    head = np.zeros(5)
+    before = pos.copy()
+    w, c, b = contact_geometry((-1.0, 1.0, -1.0, 1.0), [(0.5, 0.5, 0.1)], [(0.6, 0.7, 0, 1)])
+    found, closest = resolve_contacts(pos, head, R, A, w, c, b, 8)
+    assert found >= 1  # the first two overlapped
+    assert np.hypot(*(pos[1] - pos[0])) == pytest.approx(2 * R)
+    assert closest == pytest.approx(2 * R)
+    np.testing.assert_array_equal(pos[3:], before[3:])
