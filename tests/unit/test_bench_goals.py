@@ -71,7 +71,8 @@ def run_main(
     given); returns what it measured and printed."""
     measured: list[tuple] = []
 
-    def measure_aes(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
+    def measure_aes(robots, rate, source, layout, warmup, window, discovery="auto", run=1,
+                    contacts=None, bodies=None):  # fmt: skip
         measured.append(("aes", robots, rate, source))
         us = {"poses": 200.0, "odom": 500.0}[source] * (0.5 if robots == 1000 else 1.0)
         return row(bench, robots, rate, source, us=us, median=rate)
@@ -160,7 +161,8 @@ def test_discovery_modes_are_measured_interleaved_and_judged_side_by_side(
     # through a server 1000 robots start in 12 s and answer 19.5 Hz; simply, 43 s and 17.6 Hz
     figures = {"simple": (43.0, 17.6), "server": (12.0, 19.5)}
 
-    def measure(robots, rate, source, layout, warmup, window, discovery="auto", run=1):
+    def measure(robots, rate, source, layout, warmup, window, discovery="auto", run=1,
+                contacts=None, bodies=None):  # fmt: skip
         measured.append((run, discovery))
         start, median = figures[discovery]
         return row(bench, robots, rate, source, us=200.0, median=median, start=start + run,
