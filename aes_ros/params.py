@@ -358,7 +358,7 @@ PARAMS: dict[str, ParamSpec] = {
         # --- bodies: contacts, walls and obstacles (aes_ros.contacts) ---
         _p(
             "contacts",
-            False,
+            True,
             "bool",
             "robots are discs of the body radius that push each other apart and stop at "
             "walls and obstacles; false: they pass through each other and everything",
