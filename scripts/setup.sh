@@ -29,4 +29,6 @@ if command -v avr-gcc >/dev/null 2>&1 && [ -e /usr/include/simavr/sim_avr.h ]; t
     make -s -C firmware >/dev/null 2>&1 ||
         echo "setup: make -C firmware failed; the firmware tests will fail until it builds" >&2
 fi
+# numba's kernels into their cache now, not at the first simulation, bridge or test
+.venv/bin/python -m aes_ros.precompile
 echo "aes-swarm installed in $(pwd)/.venv (activate with: . .venv/bin/activate)"
