@@ -49,18 +49,49 @@ def mean_metrics(out: Path) -> dict[str, float]:
     }
 
 
+def record_by_stamp(probe, topic: str, n: int) -> dict[int, np.ndarray]:
+    """Positions of ``n`` robots received on ``topic`` by their stamp [ns]."""
+    out: dict[int, np.ndarray] = {}
+
+    def on(data: bytes) -> None:
+        sec, nanosec, xy, _ = decode_pose_array(data)
+        if len(xy) == n:
+            out[sec * 1_000_000_000 + nanosec] = xy
+
+    probe.node.create_subscription(PoseArray, topic, on, STREAM_WRITER, raw=True)
+    return out
+
+
+def frames_within(tracked: dict[int, np.ndarray], truth: dict[int, np.ndarray], tol: float):
+    """(frames compared, fraction of them with every robot within ``tol`` [m] of the
+    ground truth of the frame's exposure, worst error [m] of each frame)."""
+    stamps = sorted(set(tracked) & set(truth))
+    worst = np.array([np.linalg.norm(tracked[s] - truth[s], axis=1).max() for s in stamps])
+    return len(stamps), float(np.mean(worst <= tol)) if len(stamps) else 0.0, worst
+
+
 @pytest.mark.alone  # the camera renders and the tracker detects on both cores
-def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, tmp_path) -> None:
+def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, probe, tmp_path) -> None:
     def run(name: str, *extra: str) -> tuple[dict[str, float], str]:
         proc = spawn.start(
             "aes-swarm", "launch", "--setup", "combined", "--robots", "16", "--duration", "15",
-            "--set", f"arena={ARENA}", "--out", str(tmp_path / name), *extra, name=name,
+            "--set", f"arena={ARENA}", "--set", "contacts=true", "--out", str(tmp_path / name),
+            *extra, name=name,
         )  # fmt: skip
         assert proc.wait(240) == 0, spawn.logs()
         return mean_metrics(tmp_path / name), spawn.log(proc).read_text()
 
     exact, _ = run("exact")
+    # the tracker stamps /swarm/poses with the exposure, the bridge's ground truth of it
+    # carries the same stamp: pose and truth are compared frame by frame
+    poses = record_by_stamp(probe, names.POSES, 16)
+    truth = record_by_stamp(probe, names.GROUND_TRUTH_POSES, 16)
     tracked, log = run("tracked", "--tracking", "camera")
+    frames, within, worst = frames_within(poses, truth, 0.005)
+    print(f"\n{frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
+          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
+    assert frames > 200  # 15 s at 20 Hz, less the start
+    assert within >= 0.995, np.sort(worst)[-10:]
     assert "positions from the overhead camera (1280x960 px, 20 Hz)" in log
     assert "arena keeper" not in log
     # every process of the tracked run stopped cleanly, the tracker among them
