@@ -44,7 +44,11 @@ from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.node_tools import ThrottledWarnings
 from aes_ros.ros.qos import IMAGES, SENSOR
 from aes_ros.ros.spin import run_node_process
+from sim_bridge import camera_effects
 from sim_bridge.camera_render import CameraRenderer
+
+#: ``preset`` values: the defaults of the camera effects' parameters.
+PRESETS = {"none": camera_effects.Effects(), "realistic": camera_effects.REALISTIC}
 
 #: Floor margin [m] the camera sees beyond the arena on every side, so that a robot at
 #: the arena's edge is still whole in the picture, and the reference markers off its
@@ -75,6 +79,11 @@ class ArenaCameraNode(Node):
     walls : str [m], the scenario's walls ``x_min,x_max,y_min,y_max``; empty for none.
     obstacles : str [m], its obstacles ``circle:x,y,r;box:x_min,x_max,y_min,y_max``
         (:mod:`aes_ros.obstacles`); empty for none. Both drawn as dark solids.
+    preset : str, ``none`` or ``realistic``: the defaults of the five effects below
+        (:mod:`sim_bridge.camera_effects`), default ``none`` (all off).
+    exposure : float [s], motion blur over the exposure. vignetting, gradient : float,
+        gain lost at the corners and at the right edge. full_well : float [e⁻] at white,
+        shot noise (0: none). read_noise : float [e⁻ rms].
     """
 
     def __init__(self, **kwargs: Any) -> None:
@@ -121,6 +130,29 @@ class ArenaCameraNode(Node):
             value = self.declare_parameter(name, "", rp.text_descriptor(text, **ro)).value
             solids[name] = PARAMS[name].validate(value)  # ParameterError names the field
         walls, circles, boxes = contact_arrays(solids)
+        preset = self.declare_parameter(
+            "preset", "none", rp.text_descriptor("camera effects' defaults", PRESETS, **ro)
+        ).value
+        if preset not in PRESETS:
+            raise ParameterError(f"preset: {preset!r} is not one of {', '.join(PRESETS)}")
+        base = PRESETS[preset]
+        self.effects = dataclasses.replace(
+            base,
+            exposure_s=number("exposure", base.exposure_s, "exposure (motion blur)", "s", 0.0, 1.0),
+            vignetting=number("vignetting", base.vignetting, "gain lost at the corners", "",
+                              0.0, 0.95),
+            gradient=number("gradient", base.gradient, "gain lost at the right edge", "",
+                            0.0, 0.95),
+            full_well=number("full_well", base.full_well, "electrons at white (shot noise)",
+                             "e-", 0.0, 1e7),
+            read_noise=number("read_noise", base.read_noise, "read noise", "e- rms", 0.0, 1e4),
+        )  # fmt: skip
+        self.gain = (
+            camera_effects.lighting_gain((height, width), self.effects.vignetting,
+                                         self.effects.gradient)
+            if self.effects.lighting else None
+        )  # fmt: skip
+        self.last_pose: tuple[int, np.ndarray, np.ndarray] | None = None
         if arena_or_none(list(arena)) is None:  # checked as the supervisor's arena is
             raise ParameterError("arena: the camera needs the floor it sees, four numbers")
         if len(distortion) != 5:
@@ -175,14 +207,34 @@ class ArenaCameraNode(Node):
         if now >= self.next_ns:
             self.next_ns = max(self.next_ns + self.period_ns, now)
             if self.rng.random() >= self.drop:
-                frame = self.renderer.render(positions, headings)
+                frame = self.expose(now, positions, headings)
                 encoded = encode_image(sec, nanosec, names.CAMERA_FRAME, frame, "mono8")
                 self.held.append((now + self.delay_ns, encoded, sec, nanosec))
+        self.last_pose = (now, positions, headings)
         while self.held and self.held[0][0] <= now:
             _, encoded, sec, nanosec = self.held.pop(0)
             self.info.header.stamp.sec, self.info.header.stamp.nanosec = sec, nanosec
             self.image_pub.publish(encoded)
             self.info_pub.publish(self.info)
+
+    def expose(self, now: int, positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
+        """One frame of the poses at ``now`` [ns], with the effects that are on."""
+        fx = self.effects
+        if not (fx.exposure_s > 0.0 or fx.lighting or fx.noise):
+            return self.renderer.render(positions, headings)
+        velocity, yaw_rate = np.zeros_like(positions), np.zeros_like(headings)
+        if self.last_pose is not None and len(self.last_pose[1]) == len(positions):
+            t0, p0, h0 = self.last_pose
+            if 0 < now - t0 < 1_000_000_000:  # the motion since the last poses
+                dt = 1e-9 * (now - t0)
+                velocity = (positions - p0) / dt
+                yaw_rate = np.angle(np.exp(1j * (headings - h0))) / dt
+        if fx.exposure_s > 0.0:
+            frame = camera_effects.exposed(self.renderer.render, positions, headings, velocity,
+                                           yaw_rate, fx.exposure_s, fx.blur_samples)  # fmt: skip
+        else:
+            frame = self.renderer.render(positions, headings)
+        return camera_effects.apply(frame, fx, self.gain, self.rng)
 
 
 def arena_camera(
