@@ -136,6 +136,8 @@ def tracking_commands(config: LaunchConfig, layout_file: Path) -> list[ProcessSp
         "seed": int(config.seed),
         "use_sim_time": config.sim_time,
     }
+    if config.camera_preset != "none":
+        camera["preset"] = config.camera_preset
     if config.scenario.walls:  # the scenario's walls and obstacles in the picture
         camera["walls"] = ",".join(repr(float(v)) for v in config.scenario.walls)
     if config.scenario.obstacles:

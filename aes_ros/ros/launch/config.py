@@ -50,7 +50,8 @@ class LaunchConfig:
     tracking : ``camera``: the robots take their neighbours' positions from the
         simulated overhead camera and the tracker, and the bridge's exact poses go to
         ``/sim/ground_truth/poses`` (what the launcher's outputs are made of);
-        ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera.
+        ``none``: from the bridge. camera_size [px] and camera_rate [Hz] of the camera,
+        camera_preset its effects (:data:`sim_bridge.camera_node.PRESETS`).
     record_images : with ``record``, also the camera's frames, at most this many a
         second (0: none; a 1280 × 960 frame is 1.2 MB).
     bag_split : with ``record``, go on in the next bag segment (``run_1.mcap``, …)
@@ -103,6 +104,7 @@ class LaunchConfig:
     tracking: str = "none"
     camera_size: tuple[int, int] = (1280, 960)
     camera_rate: float = 20.0
+    camera_preset: str = "none"
     world: str = "pybullet"
     record_images: float = 0.0
     bag_split: str | None = None
