@@ -23,7 +23,7 @@ COMMANDS: dict[str, str] = {
     "optimize": "tune alpha, beta, k with TCACS on the Monte-Carlo cost J (E10)",
     "study": "the paper's tuning study: untuned vs paper vs TCACS gains, weight variants",
     "sweep": "the offline simulator over a grid or Latin hypercube of parameters (local or Dask)",
-    "explore": "studies on sweeps: pareto, noise, robustness, perception, ladder",
+    "explore": "studies on sweeps: pareto, noise, robustness, perception, ladder, clutter",
     "launch": "run the ROS 2 system (pybullet bridge, supervisor, robot nodes) and write outputs",
     "steer": "steer the running swarm: publish one /swarm/cmd",
     "dashboard": "watch and steer the running swarm in the browser",
