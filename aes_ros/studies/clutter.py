@@ -86,7 +86,7 @@ def run_metrics(result: SimResult, posts: np.ndarray, direction: np.ndarray) -> 
     else:
         post_hits = np.zeros(B)
     gaps = np.linalg.norm(centres[..., :, None, :] - centres[..., None, :, :], axis=-1)
-    pairs = np.triu(gaps <= 2 * reach, k=1)
+    pairs = np.triu(gaps <= 2 * BODY.body_radius + TOUCH_TOLERANCE, k=1)
     robot_hits = onsets(pairs)
     alignment = result.metric("alignment")[:, result.times >= TRANSIENT]
     along = result.centroid @ direction
