@@ -151,13 +151,18 @@ def test_ros_system_equals_offline_simulator(spawn, ros_env, tmp_path) -> None:
     rc, log = run_launch(
         spawn, "--setup", "linear", "--robots", "16", "--layout", "per-core", *FAST,
         "--mode", "kinematic", "--duration", "10", "--seed", str(seed),
-        "--set", "d_r=0", "--set", "d_theta=0", "--set", "clip=false", "--out", str(out),
+        "--set", "d_r=0", "--set", "d_theta=0", "--set", "clip=false",
+        "--set", "contacts=false", "--out", str(out),
     )  # fmt: skip
     assert rc == 0, log
     traj = load_trajectory(out / "trajectory.h5")
     times, pos, head = traj.times, traj.positions[0], traj.headings[0]
 
-    sc = scenario.load("linear", {"d_r": 0.0, "d_theta": 0.0, "duration": 10.0}).with_robots(16)
+    # contacts off: a contact is a discontinuity that grows the numba kernel's 1e-9 m
+    # rounding apart from the bridge's into millimetres; the lockstep bridge with bodies
+    # is compared with the offline simulator in tests/system/test_sim_bridge.py
+    values = {"d_r": 0.0, "d_theta": 0.0, "duration": 10.0, "contacts": False}
+    sc = scenario.load("linear", values).with_robots(16)
     ref = simulator.simulate(sc, [seed], noise=False)
     start_pos, start_head = sc.initial_state(seed)
     np.testing.assert_allclose(pos[0], start_pos, atol=1e-9)

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 # alone: 50 robots load both cores, and the recovery windows are judged
-pytestmark = pytest.mark.alone
+pytestmark = [pytest.mark.alone, pytest.mark.soak]
 
 REPO = Path(__file__).resolve().parents[2]
 #: [MB/h]: the leaks of issue #23 measured 270-340 at this size, flat processes < 30.
