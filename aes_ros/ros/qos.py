@@ -79,8 +79,9 @@ LATCHED_WRITER = QoSProfile(
 #: The bridge's publishers of /clock and /swarm/poses. Every reader in the system
 #: reads them best-effort (SENSOR: a late pose is worthless to a controller; rclpy's
 #: /clock subscription is best-effort too), which a reliable writer serves just the
-#: same. The recorder reads them reliably, so that a datagram it missed while busy
-#: is resent instead of leaving a step out of the bag (tests/system/test_recording.py).
+#: same. The recorder and the launcher read them reliably, so that a datagram missed
+#: while busy is resent instead of leaving a step out of the bag or the run's outputs
+#: (tests/system/test_recording.py, tests/system/test_perception_ros.py).
 STREAM_WRITER = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=50,

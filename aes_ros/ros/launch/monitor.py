@@ -89,7 +89,10 @@ class Monitor:
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
             )
             self.node = rclpy.create_node(names.LAUNCHER_NODE, context=self.context)
-        stream = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+        # Reliable, as the recorder: the samples are the run's outputs, and a burst of
+        # datagrams missed while the launcher was descheduled would otherwise cut them
+        # short (the bridge's writer keeps 50 samples to resend; qos.STREAM_WRITER).
+        stream = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(PoseArray, poses_topic, self.on_poses, stream, raw=True)
         self.node.create_subscription(
             Clock,
