@@ -80,6 +80,7 @@ def test_every_robot_reads_its_ir_sensors_and_sees_robots_walls_and_obstacles(
     assert expected[[0, 1, 2, 3, 4], 0] == pytest.approx([GAP, GAP, 0.06, 0.07, 0.04], abs=5e-4)
     # and the ±37° sensors of robot 2 see the wall, those of robot 4 the box
     assert (expected < model.max_range).sum() == 9
+    steps: list[int] = []
     for (i, k), msgs in readings.items():
         msg = msgs[-1]
         assert msg.header.frame_id == f"mona_{i}/ir_{k}"
@@ -88,9 +89,12 @@ def test_every_robot_reads_its_ir_sensors_and_sees_robots_walls_and_obstacles(
         assert (msg.min_range, msg.max_range) == pytest.approx((model.min_range, model.max_range))
         # pybullet and the kernel agree within 2 mm, one ADC count is at most 1 mm
         assert msg.range == pytest.approx(expected[i, k], abs=0.003), (i, k)
-        # 10 readings per second of sim time (the default ir_rate), stamped with it
-        stamps = [stamp_to_ns(m.header.stamp) for m in msgs[-3:]]
-        assert np.diff(stamps) == pytest.approx([1e8, 1e8], abs=1e3)
+        steps.extend(np.diff([stamp_to_ns(m.header.stamp) for m in msgs]))
+
+    # 10 readings per second of sim time (the default ir_rate), stamped with it; the
+    # readers are best effort, so a loaded machine may drop one (a step of 0.2 s)
+    assert min(steps) == pytest.approx(1e8, abs=1e3)
+    assert np.remainder(np.array(steps) + 1e3, 1e8) == pytest.approx(1e3, abs=1e3)
 
     # IR model constants that cannot work are refused with the reason; the old ones stay
     (result,) = probe.set_parameters(BRIDGE, [Parameter("ir_max_range", value=0.005)])
