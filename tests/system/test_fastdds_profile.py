@@ -1,4 +1,5 @@
-"""The Fast DDS profile every launched process gets (``aes_ros/ros/fastdds_profile.xml``).
+"""The Fast DDS profiles of launched processes: ``aes_ros/ros/fastdds_profile.xml`` for every
+one, ``aes_ros/ros/fastdds_images.xml`` for the simulated camera.
 
 With it a participant does not match its own endpoints: what keeps a large robot host's
 start short (docs/performance.md), and why a node added *into* an aes-swarm process does
@@ -10,8 +11,13 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
-from aes_ros.ros.launch.processes import PROFILE_VARIABLES, fastdds_environment
+from aes_ros.ros.launch.processes import (
+    PROFILE_VARIABLES,
+    fastdds_environment,
+    images_environment,
+)
 
 #: One process, one node: a publisher and a subscription of the same topic; prints how
 #: many readers the publisher has matched after up to 3 s.
@@ -44,3 +50,35 @@ def test_a_launched_process_does_not_hear_itself(ros_env):
     plain = {k: v for k, v in ros_env.items() if k not in PROFILE_VARIABLES}
     assert matched_own_readers(plain) == 1  # Fast DDS's default: it does
     assert matched_own_readers(fastdds_environment(plain)) == 0
+
+
+#: Prints the sizes [bytes] of the Fast DDS data segments its process maps (its own, with
+#: no peers): /dev/shm/fastrtps_<16 hex digits>.
+SEGMENT = """
+import os, re
+import rclpy
+from rclpy.node import Node
+
+rclpy.init()
+node = Node("segment_size", start_parameter_services=False)
+maps = open("/proc/self/maps").read()
+paths = set(re.findall(r"(/dev/shm/fastrtps_[0-9a-z]{16})$", maps, re.M))
+print(*sorted(os.path.getsize(p) for p in paths), flush=True)
+"""
+
+
+def test_the_camera_sends_frames_through_a_segment_that_holds_them(ros_env):
+    """A 1.2-3 MB frame goes as ~64 kB fragments; the camera's segment holds a few frames'
+    worth (32 MB), where Fast DDS's default (512 kB) held a few fragments."""
+    plain = {k: v for k, v in ros_env.items() if k not in PROFILE_VARIABLES}
+    camera = {**fastdds_environment(plain), **images_environment(plain)}
+    assert Path(camera["FASTRTPS_DEFAULT_PROFILES_FILE"]).name == "fastdds_images.xml"
+    assert matched_own_readers(camera) == 0  # the launch's profile, otherwise
+    done = subprocess.run(
+        [sys.executable, "-c", SEGMENT], env=camera, capture_output=True, text=True, timeout=60
+    )
+    assert done.returncode == 0, done.stderr
+    sizes = [int(size) for size in done.stdout.split()]
+    assert sizes and max(sizes) >= 32 * 2**20, sizes
+    # a caller's own profile wins
+    assert images_environment({**plain, "FASTRTPS_DEFAULT_PROFILES_FILE": "mine.xml"}) == {}

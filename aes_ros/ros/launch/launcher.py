@@ -72,7 +72,12 @@ from aes_ros.ros.launch.param_files import (
     write_robot_params,
     write_scenario,
 )
-from aes_ros.ros.launch.processes import Child, ProcessSet, fastdds_environment
+from aes_ros.ros.launch.processes import (
+    Child,
+    ProcessSet,
+    fastdds_environment,
+    images_environment,
+)
 from aes_ros.ros.launch.reaper import start_reaper
 from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
@@ -106,6 +111,7 @@ class Launcher:
         logs = self.work_dir / "logs"
         logs.mkdir(exist_ok=True)
         self.procs = ProcessSet(logs, fastdds_environment(dict(os.environ)), pid_file=logs / "pids")
+        self.procs.env_for[names.CAMERA_NODE] = images_environment(os.environ)
         self.recorder: Child | None = None
         self.monitor: Monitor | None = None
         self.events: EventLog | None = None

@@ -13,7 +13,7 @@ import shutil
 import signal
 import subprocess
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -223,6 +223,19 @@ def start_time(pid: int) -> int | None:
 #: The Fast DDS profile of the processes a launch starts (faster rediscovery).
 FASTDDS_PROFILE = Path(__file__).resolve().parents[1] / "fastdds_profile.xml"
 PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+#: The simulated camera's profile: :data:`FASTDDS_PROFILE` with a 32 MB shared-memory
+#: segment, so that its frames go through shared memory rather than UDP.
+IMAGES_PROFILE = FASTDDS_PROFILE.with_name("fastdds_images.xml")
+
+
+def images_environment(env: Mapping[str, str]) -> dict[str, str]:
+    """What the camera's environment adds to the launch's: :data:`IMAGES_PROFILE`, unless
+    ``env`` (the caller's) names a profile of its own."""
+    if any(env.get(name) for name in PROFILE_VARIABLES):
+        return {}
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(IMAGES_PROFILE)}
 
 
 def fastdds_environment(env: dict[str, str]) -> dict[str, str]:
