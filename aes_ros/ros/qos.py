@@ -89,6 +89,14 @@ STREAM_WRITER = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+#: Queue depth of the readers whose messages are a run's outputs (the recorder's, the
+#: launcher's of the poses): the middleware's threads go on receiving (and acknowledging)
+#: into them while the reader's executor is held up, so they bound how long it may lag
+#: (1000 messages: 20 s at 50 Hz, 5 s of a lockstep run at full speed). They hold
+#: messages only while the reader lags, so a deep one costs memory only then.
+#: docs/reliability.md#runs-of-hours.
+OUTPUT_DEPTH = 1000
+
 
 #: /swarm/markers as a viewer reads it (RViz2, Foxglove): reliable (RViz2's default)
 #: and only the newest; a viewer that lags skips to the latest picture.

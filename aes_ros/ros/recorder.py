@@ -74,7 +74,15 @@ from aes_ros.ros.bag import (
 )
 from aes_ros.ros.cdr import decode_stamp
 from aes_ros.ros.conversions import BadMessageError
-from aes_ros.ros.qos import COMMAND, COMMAND_KEPT, IMAGES, LATCHED, SENSOR, STREAM_WRITER
+from aes_ros.ros.qos import (
+    COMMAND,
+    COMMAND_KEPT,
+    IMAGES,
+    LATCHED,
+    OUTPUT_DEPTH,
+    SENSOR,
+    STREAM_WRITER,
+)
 from aes_ros.ros.spin import spin
 
 #: Topics recorded from the start: name -> (type, QoS of its publisher;
@@ -99,12 +107,9 @@ CAMERA_TOPICS = {
     names.CAMERA_IMAGE: ("sensor_msgs/msg/Image", IMAGES),
     names.CAMERA_INFO: ("sensor_msgs/msg/CameraInfo", SENSOR),
 }
-#: Deeper queues than the publishers' so that a busy recorder loses nothing: the
-#: middleware's threads go on receiving (and acknowledging) into them while the
-#: recorder's executor is held up, so they bound how long it may be (1000 messages:
-#: 20 s at 50 Hz). They hold messages only while the recorder lags, so a deep one costs
-#: memory only then. docs/reliability.md#runs-of-hours.
-QUEUE_DEPTH = 1000
+#: Deeper queues than the publishers' so that a busy recorder loses nothing
+#: (:data:`aes_ros.ros.qos.OUTPUT_DEPTH`).
+QUEUE_DEPTH = OUTPUT_DEPTH
 #: Wall seconds between chunk flushes: what a recorder killed with SIGKILL can lose.
 FLUSH_PERIOD = 1.0
 

@@ -35,7 +35,7 @@ from aes_ros.ros.conversions import BadMessageError
 from aes_ros.ros.discovery import Discovery, set_environ
 from aes_ros.ros.launch.processes import fastdds_environment
 from aes_ros.ros.programs import LaunchError
-from aes_ros.ros.qos import LATCHED
+from aes_ros.ros.qos import LATCHED, OUTPUT_DEPTH
 
 #: Tolerance on sim-time comparisons [s].
 TIME_EPS = 1e-6
@@ -89,10 +89,11 @@ class Monitor:
                 args=[], context=self.context, signal_handler_options=SignalHandlerOptions.NO
             )
             self.node = rclpy.create_node(names.LAUNCHER_NODE, context=self.context)
-        # Reliable, as the recorder: the samples are the run's outputs, and a burst of
-        # datagrams missed while the launcher was descheduled would otherwise cut them
-        # short (the bridge's writer keeps 50 samples to resend; qos.STREAM_WRITER).
-        stream = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        # Reliable and deep, as the recorder's: the samples are the run's outputs. In
+        # lockstep at full speed the bridge goes on at ~200 steps/s while the launcher is
+        # descheduled, and a queue of 100 dropped the samples before a run's end, so the
+        # next one was past it and the outputs ended early (test_perception_ros).
+        stream = QoSProfile(depth=OUTPUT_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(PoseArray, poses_topic, self.on_poses, stream, raw=True)
         self.node.create_subscription(
             Clock,
