@@ -114,6 +114,16 @@ class Viewers:
         self._run(self.sockets[0].send_str(text))
         return self.results.get(timeout=timeout)
 
+    def send_all(self, messages: list[dict[str, Any]], timeout: float = 10.0) -> list[dict]:
+        """Send ``messages`` as viewer 0 back to back, then return the server's results."""
+
+        async def send() -> None:
+            for message in messages:
+                await self.sockets[0].send_str(json.dumps(message))
+
+        self._run(send())
+        return [self.results.get(timeout=timeout) for _ in messages]
+
     def rate(self, v: int, since: float) -> float:
         """Frames per wall second viewer ``v`` received since monotonic time ``since``."""
         times = [t for t, _ in self.frames[v] if t >= since]
