@@ -34,6 +34,7 @@ from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import resolve_listed
 from aes_ros.ir import ray_distances
 from aes_ros.metrics import FORCE_EPS
+from aes_ros.numba_cache import depend_on
 
 #: Layout of the ``params`` vector passed to :func:`advance`.
 PARAM_ORDER = (
@@ -492,3 +493,8 @@ def advance(
                 )  # fmt: skip
                 contact_out[b, step, 0] = found
                 contact_out[b, step, 1] = closest
+
+
+# Numba's cache checks this file only: an edit of the contact rule, the rays or the
+# constants compiled in from these modules must compile the kernel again.
+depend_on(advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.metrics")
