@@ -303,6 +303,28 @@ def test_a_calibration_file_with_a_wrong_field_exits_naming_it(spawn, scene, tmp
 
 
 @pytest.mark.alone  # the camera renders and the tracker detects on both cores
+@pytest.mark.soak  # 2 x 40 s: a long run, left out of the default suite (pytest -m soak)
+@pytest.mark.parametrize("setup", ["linear", "combined"])
+def test_tracked_poses_stay_within_5_mm_of_the_truth_for_40_s(spawn, probe, tmp_path, setup):
+    """16 robots with bodies, ``--tracking camera``, 40 s: every robot's tracked pose
+    within 5 mm of the ground truth of its exposure in >= 99.5 % of the frames."""
+    poses = record_by_stamp(probe, names.POSES, 16)
+    truth = record_by_stamp(probe, names.GROUND_TRUTH_POSES, 16)
+    extra = ["--set", f"arena={ARENA}"] if setup == "combined" else []
+    proc = spawn.start(
+        "aes-swarm", "launch", "--setup", setup, "--robots", "16", "--duration", "40",
+        "--set", "contacts=true", "--tracking", "camera", *extra, "--out", str(tmp_path / setup),
+        name=setup,
+    )  # fmt: skip
+    assert proc.wait(300) == 0, spawn.logs()
+    frames, within, worst = frames_within(poses, truth, 0.005)
+    print(f"\n{setup}, 40 s: {frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
+          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
+    assert frames > 700  # 40 s at 20 Hz, less the start
+    assert within >= 0.995, np.sort(worst)[-10:]
+
+
+@pytest.mark.alone  # the camera renders and the tracker detects on both cores
 def test_a_real_arena_launch_runs_from_a_camera_without_a_bridge(spawn, probe, tmp_path):
     """``--world none``: no bridge, no simulated camera; the tracker reads the "camera"
     (a video file standing in for /dev/video0) with a calibration made beforehand,
