@@ -72,6 +72,16 @@ def frames_within(tracked: dict[int, np.ndarray], truth: dict[int, np.ndarray], 
     return len(stamps), float(np.mean(worst <= tol)) if len(stamps) else 0.0, worst
 
 
+def assert_tracked_within_5_mm(poses, truth, label: str, min_frames: int) -> None:
+    """More than ``min_frames`` frames compared, and in >= 99.5 % of them every robot's
+    tracked pose within 5 mm of the ground truth of its exposure (printed)."""
+    frames, within, worst = frames_within(poses, truth, 0.005)
+    print(f"\n{label}: {frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
+          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
+    assert frames > min_frames
+    assert within >= 0.995, np.sort(worst)[-10:]
+
+
 @pytest.mark.alone  # the camera renders and the tracker detects on both cores
 def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, probe, tmp_path) -> None:
     def run(name: str, *extra: str) -> tuple[dict[str, float], str]:
@@ -89,11 +99,7 @@ def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, probe, tmp_pat
     poses = record_by_stamp(probe, names.POSES, 16)
     truth = record_by_stamp(probe, names.GROUND_TRUTH_POSES, 16)
     tracked, log = run("tracked", "--tracking", "camera")
-    frames, within, worst = frames_within(poses, truth, 0.005)
-    print(f"\n{frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
-          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
-    assert frames > 200  # 15 s at 20 Hz, less the start
-    assert within >= 0.995, np.sort(worst)[-10:]
+    assert_tracked_within_5_mm(poses, truth, "combined", 200)  # 15 s at 20 Hz, less the start
     # the linear setup starts the robots in a line, bodies close together: 8 s of it
     poses.clear()
     truth.clear()
@@ -103,11 +109,7 @@ def test_a_tracked_swarm_moves_like_the_one_on_exact_poses(spawn, probe, tmp_pat
         name="linear",
     )  # fmt: skip
     assert line.wait(240) == 0, spawn.logs()
-    frames, within, worst = frames_within(poses, truth, 0.005)
-    print(f"linear: {frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
-          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
-    assert frames > 100  # 8 s at 20 Hz, less the start
-    assert within >= 0.995, np.sort(worst)[-10:]
+    assert_tracked_within_5_mm(poses, truth, "linear", 100)  # 8 s at 20 Hz, less the start
     assert "positions from the overhead camera (1280x960 px, 20 Hz)" in log
     assert "arena keeper" not in log
     # every process of the tracked run stopped cleanly, the tracker among them
@@ -317,11 +319,7 @@ def test_tracked_poses_stay_within_5_mm_of_the_truth_for_40_s(spawn, probe, tmp_
         name=setup,
     )  # fmt: skip
     assert proc.wait(300) == 0, spawn.logs()
-    frames, within, worst = frames_within(poses, truth, 0.005)
-    print(f"\n{setup}, 40 s: {frames} frames, every robot within 5 mm in {100 * within:.2f} %, "
-          f"worst {1e3 * worst.max():.1f} mm")  # fmt: skip
-    assert frames > 700  # 40 s at 20 Hz, less the start
-    assert within >= 0.995, np.sort(worst)[-10:]
+    assert_tracked_within_5_mm(poses, truth, f"{setup}, 40 s", 700)  # 40 s at 20 Hz, less the start
 
 
 @pytest.mark.alone  # the camera renders and the tracker detects on both cores
