@@ -107,9 +107,6 @@ CAMERA_TOPICS = {
     names.CAMERA_IMAGE: ("sensor_msgs/msg/Image", IMAGES),
     names.CAMERA_INFO: ("sensor_msgs/msg/CameraInfo", SENSOR),
 }
-#: Deeper queues than the publishers' so that a busy recorder loses nothing
-#: (:data:`aes_ros.ros.qos.OUTPUT_DEPTH`).
-QUEUE_DEPTH = OUTPUT_DEPTH
 #: Wall seconds between chunk flushes: what a recorder killed with SIGKILL can lose.
 FLUSH_PERIOD = 1.0
 
@@ -128,7 +125,7 @@ def _subscriber_qos(infos: Iterable) -> QoSProfile:
         i.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for i in infos
     )
     return QoSProfile(
-        depth=QUEUE_DEPTH,
+        depth=OUTPUT_DEPTH,
         reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
@@ -290,12 +287,12 @@ def say(text: str) -> None:
 
 
 def _with_depth(qos: QoSProfile) -> QoSProfile:
-    """``qos`` with a queue of QUEUE_DEPTH, also for the latched topics: their
+    """``qos`` with a queue of OUTPUT_DEPTH, also for the latched topics: their
     publishers keep only the last sample for late joiners, but a recorder that keeps
     only one would lose every sample it has not taken before the next arrives (the
     supervisor publishes the rotation centre for every poses message)."""
     return QoSProfile(
-        depth=max(qos.depth, QUEUE_DEPTH),
+        depth=max(qos.depth, OUTPUT_DEPTH),
         reliability=qos.reliability,
         durability=qos.durability,
         history=qos.history,

@@ -11,9 +11,12 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 from aes_ros.ros.launch.processes import (
+    FASTDDS_PROFILE,
+    IMAGES_PROFILE,
     PROFILE_VARIABLES,
     fastdds_environment,
     images_environment,
@@ -82,3 +85,16 @@ def test_the_camera_sends_frames_through_a_segment_that_holds_them(ros_env):
     assert sizes and max(sizes) >= 32 * 2**20, sizes
     # a caller's own profile wins
     assert images_environment({**plain, "FASTRTPS_DEFAULT_PROFILES_FILE": "mine.xml"}) == {}
+
+
+def test_the_camera_profile_keeps_the_launch_profiles_participant_settings():
+    """fastdds_images.xml copies fastdds_profile.xml's discovery and properties (Fast DDS
+    takes one default participant profile a process): the copy says the same."""
+    ns = {"p": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+
+    def settings(path: Path) -> list[bytes]:
+        rtps = ET.parse(path).getroot().find("p:participant/p:rtps", ns)
+        assert rtps is not None, path
+        return [ET.tostring(rtps.find(f"p:{tag}", ns)) for tag in ("builtin", "propertiesPolicy")]
+
+    assert settings(IMAGES_PROFILE) == settings(FASTDDS_PROFILE)

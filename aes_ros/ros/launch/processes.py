@@ -230,17 +230,22 @@ PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES
 IMAGES_PROFILE = FASTDDS_PROFILE.with_name("fastdds_images.xml")
 
 
+def names_a_profile(env: Mapping[str, str]) -> bool:
+    """Whether ``env`` names a Fast DDS profile file of its own (the caller's wins)."""
+    return any(env.get(name) for name in PROFILE_VARIABLES)
+
+
 def images_environment(env: Mapping[str, str]) -> dict[str, str]:
     """What the camera's environment adds to the launch's: :data:`IMAGES_PROFILE`, unless
     ``env`` (the caller's) names a profile of its own."""
-    if any(env.get(name) for name in PROFILE_VARIABLES):
+    if names_a_profile(env):
         return {}
     return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(IMAGES_PROFILE)}
 
 
 def fastdds_environment(env: dict[str, str]) -> dict[str, str]:
     """``env`` with :data:`FASTDDS_PROFILE` as the default profile, unless it names one."""
-    if any(env.get(name) for name in PROFILE_VARIABLES):
+    if names_a_profile(env):
         return dict(env)
     return {**env, "FASTRTPS_DEFAULT_PROFILES_FILE": str(FASTDDS_PROFILE)}
 
