@@ -89,9 +89,11 @@ def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
         start[k + 1] += start[k]
     fill = start[:-1].copy()
     members = np.empty(n, np.int64)
+    slot_of = np.empty(n, np.int64)
     for i in range(n):  # a counting sort: each cell's robots in index order
         if home[i] >= 0:
             members[fill[home[i]]] = i
+            slot_of[i] = fill[home[i]]
             fill[home[i]] += 1
     cutoff2 = cutoff * cutoff
     keys = np.empty(2 * n + 8, np.int64)
@@ -101,18 +103,21 @@ def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
             continue
         ix = home[i] // ny
         iy = home[i] - ix * ny
-        # half the 3 x 3 stencil, so each pair is met once: the own cell (j > i), the
-        # cell above and the three cells of the next column
-        for e in range(5):
-            kx = ix + (0 if e < 2 else 1)
-            ky = iy + (e if e < 2 else e - 3)
-            if kx >= nx or ky < 0 or ky >= ny:
-                continue
-            k = kx * ny + ky
-            for slot in range(start[k], start[k + 1]):
+        top = min(iy + 1, ny - 1)
+        # half the 3 x 3 stencil, so each pair is met once, as two runs of consecutive
+        # cells: the own cell after i (members in index order) and the cell above, then
+        # the three cells of the next column
+        for run in range(2):
+            if run == 0:
+                first = slot_of[i] + 1
+                last = start[ix * ny + top + 1]
+            elif ix + 1 < nx:
+                first = start[(ix + 1) * ny + max(iy - 1, 0)]
+                last = start[(ix + 1) * ny + top + 1]
+            else:
+                break
+            for slot in range(first, last):
                 j = members[slot]
-                if e == 0 and j <= i:
-                    continue
                 dx = cx[j] - cx[i]
                 dy = cy[j] - cy[i]
                 if dx * dx + dy * dy >= cutoff2:

@@ -109,26 +109,53 @@ def ray_distances(
     angles [rad]; walls : (4,) x_min, x_max, y_min, y_max or (0,); circles : (M, 3) x, y, r;
     boxes : (L, 4) x_min, x_max, y_min, y_max. A distance is in [0, max_range].
     """
-    n, k = len(headings), len(angles)
-    centres, facing = np.empty((n, 2)), np.empty((n, 2))
+    n = len(headings)
+    cos_h, sin_h = np.empty(n), np.empty(n)
     for i in range(n):
-        facing[i, 0], facing[i, 1] = math.cos(headings[i]), math.sin(headings[i])
-        centres[i, 0] = positions[i, 0] + axle_offset * facing[i, 0]
-        centres[i, 1] = positions[i, 1] + axle_offset * facing[i, 1]
+        cos_h[i], sin_h[i] = math.cos(headings[i]), math.sin(headings[i])
+    cast_rays(
+        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
+        boxes, out,
+    )  # fmt: skip
+
+
+@njit(cache=True)
+def cast_rays(
+    positions: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    body_radius: float,
+    axle_offset: float,
+    angles: np.ndarray,
+    max_range: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """:func:`ray_distances` from the headings' cosines and sines ``cos_h``, ``sin_h`` (N,)
+    (the offline kernel has them from its step; the same floats give the same bits)."""
+    n, k = len(cos_h), len(angles)
+    if n == 0:
+        return
+    centres = np.empty((n, 2))
+    finite = np.isfinite(angles).all()
+    for i in range(n):
+        centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
+        centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
+        finite = finite and math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])
     mount = np.empty((k, 2))
     for a in range(k):
         mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
     # Another body can only be seen if its centre is this close to this one's.
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
-    if n == 0:
-        return
-    if not (np.isfinite(centres).all() and np.isfinite(angles).all()):
+    if not finite:
         raise ValueError("ray_distances: positions and headings must be finite")
     order, start, of, nx, ny = _cell_grid(centres, reach)  # neighbours within 3 x 3 cells
     ray = np.empty((k, 4))  # sensor point x, y and direction x, y of each sensor
     for i in range(n):
-        cx, cy, ch, sh = centres[i, 0], centres[i, 1], facing[i, 0], facing[i, 1]
+        cx, cy, ch, sh = centres[i, 0], centres[i, 1], cos_h[i], sin_h[i]
         for a in range(k):
             # direction of heading + angle, by the sum formulas (no trigonometry per ray)
             ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
@@ -159,25 +186,20 @@ def ray_distances(
                 )
             out[i, a] = best
         ci, cj = of[i] // ny, of[i] % ny
+        lo, hi = max(cj - 1, 0), min(cj + 1, ny - 1)
+        # the 3 x 3 cells as three runs of consecutive cells (one per column of the grid)
         for gx in range(max(ci - 1, 0), min(ci + 2, nx)):
-            for gy in range(max(cj - 1, 0), min(cj + 2, ny)):
-                c = gx * ny + gy
-                for m in range(start[c], start[c + 1]):
-                    j = order[m]
-                    dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
-                    if j == i or dx * dx + dy * dy >= reach2:
-                        continue
-                    for a in range(k):
-                        hit = _disc_hit(
-                            ray[a, 0],
-                            ray[a, 1],
-                            ray[a, 2],
-                            ray[a, 3],
-                            centres[j, 0],
-                            centres[j, 1],
-                            body_radius,
-                        )
-                        out[i, a] = min(out[i, a], hit)
+            for m in range(start[gx * ny + lo], start[gx * ny + hi + 1]):
+                j = order[m]
+                dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
+                if j == i or dx * dx + dy * dy >= reach2:
+                    continue
+                for a in range(k):
+                    hit = _disc_hit(
+                        ray[a, 0], ray[a, 1], ray[a, 2], ray[a, 3], centres[j, 0],
+                        centres[j, 1], body_radius,
+                    )  # fmt: skip
+                    out[i, a] = min(out[i, a], hit)
 
 
 @njit(cache=True)

@@ -32,7 +32,7 @@ from numba import njit, prange, uint64
 
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import resolve_listed
-from aes_ros.ir import ray_distances
+from aes_ros.ir import cast_rays
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
 
@@ -314,6 +314,8 @@ def advance(
         w_o = pb[28]
         sensing = w_o > 0.0
         ranges = np.empty((N if sensing else 0, IR_ANGLES.shape[0]))
+        ray_c = np.empty(N if sensing else 0)  # the headings' cos and sin for the rays
+        ray_s = np.empty(N if sensing else 0)
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):
@@ -384,9 +386,16 @@ def advance(
                             view[i, 3] = old[i, 3]
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             if sensing:  # every robot's IR ranges, cast in the true state
-                ray_distances(
-                    pos, head, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls, circles,
-                    boxes, ranges,
+                for i in range(N):
+                    if have_trig:
+                        ray_c[i] = trig_c[i]
+                        ray_s[i] = trig_s[i]
+                    else:
+                        ray_c[i] = math.cos(head[i])
+                        ray_s[i] = math.sin(head[i])
+                cast_rays(
+                    pos, ray_c, ray_s, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls,
+                    circles, boxes, ranges,
                 )  # fmt: skip
             sox, soy = ox, oy  # the rotation centre the robots see
             if perceive and use_centroid:

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.contacts import contact_geometry, resolve_contacts, resolve_listed
+from aes_ros.contacts import contact_geometry, near_pairs, resolve_contacts, resolve_listed
 from aes_ros.mona.geometry import MonaGeometry
 
 R = MonaGeometry().body_radius
@@ -164,3 +164,20 @@ def test_robots_far_apart_or_not_finite_are_handled() -> None:
     assert np.hypot(*(pos[1] - pos[0])) == pytest.approx(2 * R)
     assert closest == pytest.approx(2 * R)
     np.testing.assert_array_equal(pos[3:], before[3:])
+
+
+@pytest.mark.parametrize("cutoff", [4 * R, 7 * R, 0.5])
+def test_near_pairs_are_every_close_pair_in_order(cutoff: float) -> None:
+    """The grid finds exactly the pairs a check of all pairs finds, in lexicographic
+    order, also when robots pile up, spread far or are not finite."""
+    rng = np.random.default_rng(11)
+    for trial in range(60):
+        n = int(rng.integers(1, 150))
+        cx = rng.uniform(0.0, rng.uniform(0.05, 3.0), n)
+        cy = rng.uniform(0.0, rng.uniform(0.01, 3.0), n)
+        if trial % 5 == 0:
+            cx[rng.integers(n)] = np.nan
+        i, j = np.triu_indices(n, 1)
+        close = np.hypot(cx[j] - cx[i], cy[j] - cy[i]) < cutoff  # NaN: not close
+        expected = np.stack([i[close], j[close]], axis=1)
+        np.testing.assert_array_equal(near_pairs(cx, cy, cutoff), expected)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from aes_ros.ir import IR_ANGLES, IrResponse, ir_ranges, ray_distances
+from aes_ros.ir import IR_ANGLES, IrResponse, cast_rays, ir_ranges, ray_distances
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 
@@ -137,6 +137,27 @@ def test_the_kernel_equals_a_plain_numpy_reference(n, spread):
         assert (ranges < MAX).sum() > 20  # a layout in which robots see each other
     if not spread:
         assert (ranges == 0.0).sum() > 100
+
+
+def test_rays_from_the_kernels_cosines_are_the_rays_from_headings():
+    """The offline kernel passes the cos and sin of the headings it already has
+    (cast_rays); the distances are those of ray_distances to the bit."""
+    rng = np.random.default_rng(5)
+    positions = rng.uniform(0.0, 1.2, (100, 2))
+    headings = rng.uniform(-math.pi, math.pi, 100)
+    walls, circles, boxes = (
+        np.array([0.0, 1.2, 0.0, 1.2]),
+        np.array([[0.6, 0.6, 0.1]]),
+        np.zeros((0, 4)),
+    )
+    a, b = np.empty((100, 5)), np.empty((100, 5))
+    ray_distances(positions, headings, R, A, IR_ANGLES, MAX, walls, circles, boxes, a)
+    cast_rays(
+        positions, np.cos(headings), np.sin(headings), R, A, IR_ANGLES, MAX, walls, circles,
+        boxes, b,
+    )  # fmt: skip
+    assert a.tobytes() == b.tobytes()
+    assert (a < MAX).sum() > 50
 
 
 def test_non_finite_poses_are_refused():
