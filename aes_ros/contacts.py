@@ -267,6 +267,27 @@ def _stale(
 
 
 @njit(cache=True)
+def kept_pairs(
+    cx: np.ndarray,
+    cy: np.ndarray,
+    pairs: np.ndarray,
+    x_ref: np.ndarray,
+    y_ref: np.ndarray,
+    near: float,
+    skin: float,
+) -> np.ndarray:
+    """A candidate list (a Verlet list) kept over steps: ``pairs`` while no centre cx, cy
+    (N,) [m] has moved more than ``skin`` [m] from x_ref, y_ref (N,), the centres it was
+    made at; else :func:`near_pairs` at ``near`` [m] made now (x_ref, y_ref set to cx, cy).
+    The list returned holds every pair whose centres are closer than near - 2 skin."""
+    if _stale(cx, cy, x_ref, y_ref, skin):
+        x_ref[:] = cx
+        y_ref[:] = cy
+        return near_pairs(cx, cy, near)
+    return pairs
+
+
+@njit(cache=True)
 def resolve_listed(
     positions: np.ndarray,
     cx: np.ndarray,
@@ -279,27 +300,26 @@ def resolve_listed(
     pairs: np.ndarray,
     x_ref: np.ndarray,
     y_ref: np.ndarray,
+    near: float,
+    skin: float,
 ) -> tuple[int, float, np.ndarray]:
     """:func:`resolve_contacts` from the body centres cx, cy (N,) [m] (moved in place with
-    the positions) and a candidate list ``pairs`` made by :func:`near_pairs` at the
-    centres x_ref, y_ref (N,) [m]; returns the list to use next (a new one, with x_ref,
-    y_ref set to its centres, once a body has moved too far).
+    the positions) and a candidate list ``pairs`` kept by :func:`kept_pairs` (made at
+    ``near``, remade once a centre has moved ``skin`` from x_ref, y_ref; near - 2 skin
+    must be at least CLOSE radii); returns the list to use next, valid for the centres
+    it leaves.
 
     A sweep resolves the overlapping pairs in lexicographic order; every list that holds
     all pairs that can overlap gives the same sweep, so a list kept over steps (the
-    simulator's kernel) gives the bits of a fresh one (:func:`resolve_contacts`).
+    simulator's kernel), or one made with a longer reach, gives the bits of a fresh one
+    (:func:`resolve_contacts`).
     """
     n = positions.shape[0]
     if n == 0:
         return 0, np.inf, pairs
-    near = NEAR * radius
-    skin = 0.5 * (NEAR - CLOSE) * radius
     contacts = 0
     for sweep in range(iterations + 1):
-        if _stale(cx, cy, x_ref, y_ref, skin):
-            pairs = near_pairs(cx, cy, near)
-            x_ref[:] = cx
-            y_ref[:] = cy
+        pairs = kept_pairs(cx, cy, pairs, x_ref, y_ref, near, skin)
         if sweep == iterations:
             break  # the last pass only checks the list for the distances below
         found = _separate_listed(positions, cx, cy, radius, pairs)
@@ -335,8 +355,9 @@ def resolve_centres(
         return 0, np.inf
     pairs = near_pairs(cx, cy, NEAR * radius)
     found, closest, _ = resolve_listed(
-        positions, cx, cy, radius, walls, circles, boxes, iterations, pairs, cx.copy(), cy.copy()
-    )
+        positions, cx, cy, radius, walls, circles, boxes, iterations, pairs, cx.copy(), cy.copy(),
+        NEAR * radius, 0.5 * (NEAR - CLOSE) * radius,
+    )  # fmt: skip
     return found, closest
 
 

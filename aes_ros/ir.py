@@ -203,6 +203,88 @@ def cast_rays(
 
 
 @njit(cache=True)
+def cast_rays_listed(
+    positions: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    body_radius: float,
+    axle_offset: float,
+    angles: np.ndarray,
+    max_range: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    pairs: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
+    must hold every pair whose body centres are closer than 2 body_radius + max_range
+    (the offline kernel's contact list, kept longer for this: :func:`aes_ros.contacts.
+    kept_pairs`). Each pair is met once for both robots' rays; the distances are those
+    of :func:`cast_rays` to the bit (a minimum over the same hits)."""
+    n, k = len(cos_h), len(angles)
+    reach = 2.0 * body_radius + max_range
+    reach2 = reach * reach
+    centres = np.empty((n, 2))
+    rays = np.empty((n, k, 4))  # sensor point x, y and direction x, y of each sensor
+    mount = np.empty((k, 2))
+    for a in range(k):
+        mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
+    finite = True
+    for i in range(n):
+        ch, sh = cos_h[i], sin_h[i]
+        cx, cy = positions[i, 0] + axle_offset * ch, positions[i, 1] + axle_offset * sh
+        centres[i, 0], centres[i, 1] = cx, cy
+        finite = finite and math.isfinite(cx) and math.isfinite(cy)
+        for a in range(k):
+            ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
+            sx, sy = cx + body_radius * ux, cy + body_radius * uy
+            rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3] = sx, sy, ux, uy
+            best = max_range
+            if len(walls) == 4:
+                x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
+                if sx <= x0 or sx >= x1 or sy <= y0 or sy >= y1:
+                    best = 0.0
+                else:
+                    if ux > 0.0:
+                        best = min(best, (x1 - sx) / ux)
+                    elif ux < 0.0:
+                        best = min(best, (x0 - sx) / ux)
+                    if uy > 0.0:
+                        best = min(best, (y1 - sy) / uy)
+                    elif uy < 0.0:
+                        best = min(best, (y0 - sy) / uy)
+            for m in range(len(circles)):
+                best = min(
+                    best, _disc_hit(sx, sy, ux, uy, circles[m, 0], circles[m, 1], circles[m, 2])
+                )
+            for m in range(len(boxes)):
+                best = min(
+                    best,
+                    _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
+                )
+            out[i, a] = best
+    if not (finite and np.isfinite(angles).all()):
+        raise ValueError("ray_distances: positions and headings must be finite")
+    for e in range(pairs.shape[0]):
+        i, j = pairs[e, 0], pairs[e, 1]
+        dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
+        if dx * dx + dy * dy >= reach2:
+            continue
+        for a in range(k):
+            hit = _disc_hit(
+                rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3], centres[j, 0],
+                centres[j, 1], body_radius,
+            )  # fmt: skip
+            out[i, a] = min(out[i, a], hit)
+            hit = _disc_hit(
+                rays[j, a, 0], rays[j, a, 1], rays[j, a, 2], rays[j, a, 3], centres[i, 0],
+                centres[i, 1], body_radius,
+            )  # fmt: skip
+            out[j, a] = min(out[j, a], hit)
+
+
+@njit(cache=True)
 def ir_response(
     distances: np.ndarray,
     normals: np.ndarray,

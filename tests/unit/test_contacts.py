@@ -7,7 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.contacts import contact_geometry, near_pairs, resolve_contacts, resolve_listed
+from aes_ros.contacts import (
+    CLOSE,
+    NEAR,
+    contact_geometry,
+    near_pairs,
+    resolve_contacts,
+    resolve_listed,
+)
 from aes_ros.mona.geometry import MonaGeometry
 
 R = MonaGeometry().body_radius
@@ -125,9 +132,15 @@ def test_bad_walls_are_refused() -> None:
         contact_geometry((0.0, 1.0, 2.0))
 
 
-def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one() -> None:
-    """The kernel keeps its candidate pairs over steps (resolve_listed); the bridge calls
-    resolve_contacts, which makes them afresh: both must move the robots alike, bit for bit."""
+@pytest.mark.parametrize(
+    ("near", "skin"),
+    [(NEAR * R, 0.5 * (NEAR - CLOSE) * R), (0.26, 0.04)],
+    ids=["contacts' list", "the list the IR rays share"],
+)
+def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one(near: float, skin: float) -> None:
+    """The kernel keeps its candidate pairs over steps (resolve_listed), longer ones when
+    the IR rays use them too; the bridge calls resolve_contacts, which makes them afresh:
+    both must move the robots alike, bit for bit."""
     rng = np.random.default_rng(5)
     pos = rng.uniform(-0.4, 0.4, (60, 2))
     head = rng.uniform(-math.pi, math.pi, 60)
@@ -143,7 +156,7 @@ def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one() -> None:
         cx = kept[:, 0] + A * np.cos(head)
         cy = kept[:, 1] + A * np.sin(head)
         before = pairs
-        k1, d1, pairs = resolve_listed(kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y)
+        k1, d1, pairs = resolve_listed(kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, near, skin)
         rebuilt += pairs is not before
         k2, d2 = resolve_contacts(fresh, head, R, A, w, c, b, 8)
         assert (k1, d1) == (k2, d2)
