@@ -61,3 +61,12 @@ def avoidance_force(
     by = -np.asarray(w_o) * np.sum(push * _SIN, axis=-1)
     c, s = np.cos(headings), np.sin(headings)
     return np.stack([c * bx - s * by, s * bx + c * by], axis=-1)
+
+
+def ir_period_steps(rate: float, dt: float) -> int:
+    """Control steps per IR reading, max(1, round(1/(rate·Δt))): the offline simulator
+    casts the rays at the run steps that are multiples of it and holds them in between.
+
+    rate : the scenario's ``ir_rate`` [Hz] (> 0). dt : Δt [s].
+    """
+    return max(1, round(1.0 / (rate * dt)))

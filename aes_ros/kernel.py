@@ -43,6 +43,7 @@ PARAM_ORDER = (
     "clip", "max_linear_speed", "max_angular_speed",
     "perception_sigma", "perception_miss", "perception_delay_steps", "perception_period_steps",
     "noise_dt", "contacts", "body_radius", "axle_offset", "contact_iterations", "w_o",
+    "ir_period_steps",
 )  # fmt: skip
 #: cos and sin of the IR sensors' mounting angles (the avoidance term, aes_ros.avoidance).
 _IR_COS, _IR_SIN = np.cos(IR_ANGLES), np.sin(IR_ANGLES)
@@ -262,6 +263,7 @@ def advance(
     camera_state: np.ndarray,
     bodies: tuple[np.ndarray, np.ndarray, np.ndarray],
     contact_out: np.ndarray,
+    held_ranges: np.ndarray,
 ) -> None:
     """Advance every run by ``n_steps`` Euler steps in place.
 
@@ -291,6 +293,9 @@ def advance(
     contact_out : (B, C, 2) out, with ``contacts`` on: the overlaps resolved after each
         step and the smallest centre distance [m] after it
         (:func:`aes_ros.contacts.resolve_contacts`); untouched with contacts off.
+    held_ranges : (B, N, 5) with ``w_o`` > 0, else (B, 0, 5): every robot's IR ranges [m],
+        cast at the run steps that are multiples of ``ir_period_steps`` and held in
+        between (as a robot holds its last reading), updated.
     """
     B, N = headings.shape
     K = neighbors.shape[1]
@@ -318,8 +323,9 @@ def advance(
         touching = pb[24] != 0.0
         radius, axle_offset, iterations = pb[25], pb[26], int(pb[27])
         w_o = pb[28]
+        ir_period = int(pb[29])
         sensing = w_o > 0.0
-        ranges = np.empty((N if sensing else 0, IR_ANGLES.shape[0]))
+        ranges = held_ranges[b]
         ray_c = np.empty(N if sensing else 0)  # the headings' cos and sin for the rays
         ray_s = np.empty(N if sensing else 0)
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
@@ -398,8 +404,9 @@ def advance(
                             view[i, 2] = old[i, 2]
                             view[i, 3] = old[i, 3]
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
-            if sensing and touching:  # every robot's IR ranges, cast in the true state
-                if not have_trig:  # the first step: the contact list's centres
+            casting = sensing and t % ir_period == 0
+            if casting and touching:  # every robot's IR ranges, cast in the true state
+                if not have_trig:  # no centres yet (this call's first step)
                     for i in range(N):
                         trig_c[i] = math.cos(head[i])
                         trig_s[i] = math.sin(head[i])
@@ -411,7 +418,7 @@ def advance(
                     pos, trig_c, trig_s, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls,
                     circles, boxes, listed, ranges,
                 )  # fmt: skip
-            elif sensing:
+            elif casting:
                 for i in range(N):
                     ray_c[i] = math.cos(head[i])
                     ray_s[i] = math.sin(head[i])

@@ -238,6 +238,17 @@ PARAMS: dict[str, ParamSpec] = {
             low=0.0,
             high=10.0,
         ),
+        _p(
+            "ir_rate",
+            20.0,
+            "float",
+            "IR readings per second the avoidance term acts on (a Mona's TELEMETRY rate): the "
+            "offline simulator casts the rays every round(1/(ir_rate·Δt)) steps and holds "
+            "them in between; the bridge's ir_rate defaults to it",
+            "Hz",
+            low=0.1,
+            high=1000.0,
+        ),
         # --- swarm command (docs/design.md#extensions) ---
         _p(
             "direction",

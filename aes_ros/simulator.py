@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import formations, metrics
-from aes_ros.avoidance import avoidance_force
+from aes_ros.avoidance import AVOIDANCE_RANGE, N_IR, avoidance_force, ir_period_steps
 from aes_ros.contacts import ITERATIONS, contacts_over_time, resolve_contacts
 from aes_ros.ir import ir_ranges
 from aes_ros.kernel import PARAM_ORDER, advance, spring_list
@@ -413,7 +413,9 @@ class _NumpyStepper:
                     refresh += 1
             forces = total_forces(seen_pos, self.neighbors, self.rest, self.gains, sc.command)
             if self.gains.w_o > 0.0:  # avoidance: each robot's own IR sensors, true state
-                forces = forces + self._avoidance(pos, head)
+                if (first_step + s) % ir_period_steps(sc.ir_rate, sc.dt) == 0:
+                    self.ranges = self._ranges(pos, head)
+                forces = forces + avoidance_force(self.ranges, head, self.gains.w_o)
             noise = (xi_x[:, s], xi_y[:, s], xi_theta[:, s]) if self.noise else None
             u, w = motion_commands(forces, seen_head, self.gains, sc.dt, noise)
             if sc.clip:
@@ -429,14 +431,13 @@ class _NumpyStepper:
                     )  # fmt: skip
         return m, ph, hh, bodies
 
-    def _avoidance(self, pos: np.ndarray, head: np.ndarray) -> np.ndarray:
-        """The IR repulsion f_o (B, N, 2) of every robot, from exact ray distances."""
+    def _ranges(self, pos: np.ndarray, head: np.ndarray) -> np.ndarray:
+        """Every robot's exact IR ranges (B, N, 5) [m] (held until the next reading)."""
         walls, circles, boxes = self.bodies
-        ranges = np.stack(
+        return np.stack(
             [ir_ranges(p, h, geometry=BODY, walls=walls, circles=circles, boxes=boxes)
              for p, h in zip(pos, head, strict=True)]
         )  # fmt: skip
-        return avoidance_force(ranges, head, self.gains.w_o)
 
     def _see(
         self, camera: _Camera, pos: np.ndarray, head: np.ndarray, step: int, refresh: int
@@ -493,6 +494,7 @@ class _NumbaStepper:
             "body_radius": BODY.body_radius,
             "axle_offset": BODY.axle_offset,
             "contact_iterations": ITERATIONS,
+            "ir_period_steps": ir_period_steps(scenario.ir_rate, scenario.dt),
         }
         rows = ({**shared, **asdict(g)} for g in run_gains)  # asdict deep-copies: once a run
         self.params = np.array([[row[name] for name in PARAM_ORDER] for row in rows], dtype=float)
@@ -505,6 +507,8 @@ class _NumbaStepper:
         self.camera_state = np.empty((B, 0, 4), np.uint64)
         self.bodies = contact_arrays(scenario.values)
         self.contact_out = np.full((B, CHUNK, 2), np.nan)
+        sensing = any(g.w_o > 0.0 for g in run_gains)  # IR ranges held between readings
+        self.ranges = np.full((B, len(neighbors) if sensing else 0, N_IR), AVOIDANCE_RANGE)
 
     def advance(
         self,
@@ -531,7 +535,7 @@ class _NumbaStepper:
         advance(
             pos, head, self.neighbors, self.rest, self.params, xi_x, xi_y, xi_theta, n, m, ph, hh,
             np.ascontiguousarray(stop_at), first_step, self.springs, self.seen, self.ring,
-            self.camera_state, self.bodies, self.contact_out,
+            self.camera_state, self.bodies, self.contact_out, self.ranges,
         )  # fmt: skip
         bodies = self.contact_out[:, :n].copy()
         if not self.record:

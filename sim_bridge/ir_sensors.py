@@ -83,12 +83,13 @@ def _serialised_range(frame_id: str) -> bytearray:
     return bytearray(serialize_message(msg))
 
 
-def declare_ir_parameters(node: Node) -> None:
-    """Declare the bridge's ``ir_*`` parameters (the IR model's as the Mona driver's)."""
+def declare_ir_parameters(node: Node, rate: float = 20.0) -> None:
+    """Declare the bridge's ``ir_*`` parameters (the IR model's as the Mona driver's);
+    ``ir_rate`` defaults to ``rate``, the scenario's ``ir_rate``."""
     fd = rp.float_descriptor
     node.declare_parameter(
         "ir_rate",
-        10.0,
+        rate,
         fd(
             "IR readings per sensor per second of sim time (at most publish_rate); 0 = off",
             "Hz",
@@ -127,7 +128,7 @@ class IrSensors:
 
     Parameters (ROS, declared by :func:`declare_ir_parameters`)
     ----------------------------------------------------------
-    ir_rate : float [Hz], default 10.0
+    ir_rate : float [Hz], default the scenario's ``ir_rate`` (20)
         Readings per sensor per second of sim time; 0 = off. A robot's five rays are cast
         and published only while one of its ``ir_<k>`` topics has a subscriber.
     ir_noise : float [m], default 0.0

@@ -126,7 +126,7 @@ class SimBridgeNode(Node):
         super().__init__(names.SIM_BRIDGE_NODE, **kwargs)
         self._warn = ThrottledWarnings(self.get_logger())
         scenario = rp.declare_scenario(self)
-        declare_bridge_parameters(self)
+        declare_bridge_parameters(self, scenario.ir_rate)
         get = self.get_parameter
         self.scenario = scenario
         positions, headings = scenario.initial_state(get("seed").value)

@@ -11,9 +11,10 @@ from sim_bridge.ir_sensors import declare_ir_parameters
 from sim_bridge.lockstep import DEFAULT_TIMEOUT
 
 
-def declare_bridge_parameters(node: Node) -> None:
+def declare_bridge_parameters(node: Node, ir_rate: float = 20.0) -> None:
     """Declare every bridge parameter but ``scenario``/``num_robots`` (those come from
-    :func:`aes_ros.ros.parameters.declare_scenario`, as in every node)."""
+    :func:`aes_ros.ros.parameters.declare_scenario`, as in every node); ``ir_rate`` [Hz] is
+    the scenario's, the default of the IR sensors' rate."""
     node.declare_parameter(
         "seed",
         0,
@@ -101,7 +102,7 @@ def declare_bridge_parameters(node: Node) -> None:
     node.declare_parameter(
         "gui", False, rp.bool_descriptor("open the pybullet GUI (read at start)", read_only=True)
     )
-    declare_ir_parameters(node)
+    declare_ir_parameters(node, ir_rate)
     reason = rp.choice_error("mode", node.get_parameter("mode").value, names.MODES)
     if reason is not None:
         raise ParameterError(reason)

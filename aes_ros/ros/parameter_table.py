@@ -124,6 +124,7 @@ NOTES: dict[tuple[str, str], str] = {
     (names.SUPERVISOR_NODE, "rotation_center_mode"): "`centroid` if `rotation_center` is null",
     (names.ROBOT_NODE, "clip"): "set from `clip` at start",
     (names.SIM_BRIDGE_NODE, "clip"): "set from `clip` at start",
+    (names.SIM_BRIDGE_NODE, "ir_rate"): "defaults to the scenario's `ir_rate`; 0 = off",
 }
 
 
