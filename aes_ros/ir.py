@@ -202,6 +202,25 @@ def cast_rays(
                     out[i, a] = min(out[i, a], hit)
 
 
+@njit(inline="always")
+def _set_rays(
+    i: int,
+    centres: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    mount: np.ndarray,
+    body_radius: float,
+    rays: np.ndarray,
+) -> None:
+    """Robot i's sensor points and ray directions into ``rays[i]`` (K, 4)."""
+    ch, sh = cos_h[i], sin_h[i]
+    for a in range(mount.shape[0]):
+        ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
+        rays[i, a, 0] = centres[i, 0] + body_radius * ux
+        rays[i, a, 1] = centres[i, 1] + body_radius * uy
+        rays[i, a, 2], rays[i, a, 3] = ux, uy
+
+
 @njit(cache=True)
 def cast_rays_listed(
     positions: np.ndarray,
@@ -216,30 +235,41 @@ def cast_rays_listed(
     boxes: np.ndarray,
     pairs: np.ndarray,
     out: np.ndarray,
+    centres: np.ndarray,
+    rays: np.ndarray,
+    ready: np.ndarray,
 ) -> None:
     """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
     must hold every pair whose body centres are closer than 2 body_radius + max_range
     (the offline kernel's contact list, kept longer for this: :func:`aes_ros.contacts.
     kept_pairs`). Each pair is met once for both robots' rays; the distances are those
-    of :func:`cast_rays` to the bit (a minimum over the same hits)."""
+    of :func:`cast_rays` to the bit (a minimum over the same hits).
+
+    centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
+    and obstacles only the robots of a pair within reach have their rays set up.
+    """
     n, k = len(cos_h), len(angles)
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
-    centres = np.empty((n, 2))
-    rays = np.empty((n, k, 4))  # sensor point x, y and direction x, y of each sensor
     mount = np.empty((k, 2))
     for a in range(k):
         mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
-    finite = True
+    finite = np.isfinite(angles).all()
     for i in range(n):
-        ch, sh = cos_h[i], sin_h[i]
-        cx, cy = positions[i, 0] + axle_offset * ch, positions[i, 1] + axle_offset * sh
-        centres[i, 0], centres[i, 1] = cx, cy
-        finite = finite and math.isfinite(cx) and math.isfinite(cy)
+        centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
+        centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
+        finite = finite and math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])
+    if not finite:
+        raise ValueError("ray_distances: positions and headings must be finite")
+    static = len(walls) == 4 or len(circles) > 0 or len(boxes) > 0
+    for i in range(n):
+        ready[i] = static
+        if not static:
+            out[i, :] = max_range
+            continue
+        _set_rays(i, centres, cos_h, sin_h, mount, body_radius, rays)
         for a in range(k):
-            ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
-            sx, sy = cx + body_radius * ux, cy + body_radius * uy
-            rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3] = sx, sy, ux, uy
+            sx, sy, ux, uy = rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3]
             best = max_range
             if len(walls) == 4:
                 x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
@@ -264,13 +294,15 @@ def cast_rays_listed(
                     _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
                 )
             out[i, a] = best
-    if not (finite and np.isfinite(angles).all()):
-        raise ValueError("ray_distances: positions and headings must be finite")
     for e in range(pairs.shape[0]):
         i, j = pairs[e, 0], pairs[e, 1]
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
         if dx * dx + dy * dy >= reach2:
             continue
+        for m in (i, j):
+            if not ready[m]:
+                _set_rays(m, centres, cos_h, sin_h, mount, body_radius, rays)
+                ready[m] = True
         for a in range(k):
             hit = _disc_hit(
                 rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3], centres[j, 0],

@@ -52,7 +52,7 @@ _IR_COS, _IR_SIN = np.cos(IR_ANGLES), np.sin(IR_ANGLES)
 #: [m] (the list's centres and the rays' differ by rounding), and is made again once a
 #: body has moved this many radii (measured at 100 robots: fewer, longer lists cost more).
 _LIST_MARGIN = 1e-6
-_IR_LIST_SKIN = 1.5
+_IR_LIST_SKIN = 1.0
 
 
 _ZIGGURAT_R = 3.6541528853610088  # where the ziggurat's tail begins
@@ -328,6 +328,9 @@ def advance(
         ranges = held_ranges[b]
         ray_c = np.empty(N if sensing else 0)  # the headings' cos and sin for the rays
         ray_s = np.empty(N if sensing else 0)
+        ray_centres = np.empty((N if sensing else 0, 2))  # the rays' scratch space
+        ray_lines = np.empty((N if sensing else 0, IR_ANGLES.shape[0], 4))
+        ray_ready = np.empty(N if sensing else 0, np.bool_)
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):
@@ -416,7 +419,7 @@ def advance(
                 listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
                 cast_rays_listed(
                     pos, trig_c, trig_s, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls,
-                    circles, boxes, listed, ranges,
+                    circles, boxes, listed, ranges, ray_centres, ray_lines, ray_ready,
                 )  # fmt: skip
             elif casting:
                 for i in range(N):

@@ -194,3 +194,34 @@ def test_near_pairs_are_every_close_pair_in_order(cutoff: float) -> None:
         close = np.hypot(cx[j] - cx[i], cy[j] - cy[i]) < cutoff  # NaN: not close
         expected = np.stack([i[close], j[close]], axis=1)
         np.testing.assert_array_equal(near_pairs(cx, cy, cutoff), expected)
+
+
+def test_a_list_follows_a_swarm_that_turns_and_drives_as_a_body() -> None:
+    """A sheet that rotates and translates keeps its list (the references follow the rigid
+    motion), and the kept list still moves the robots as a fresh one does, bit for bit."""
+    rng = np.random.default_rng(8)
+    grid = np.stack(np.meshgrid(np.arange(8), np.arange(8)), -1).reshape(-1, 2) * 0.09
+    pos = grid + rng.uniform(-0.005, 0.005, grid.shape)
+    head = rng.uniform(-math.pi, math.pi, len(pos))
+    w, c, b = contact_geometry()
+    kept, fresh = pos.copy(), pos.copy()
+    ref_x, ref_y = np.full(len(pos), np.inf), np.full(len(pos), np.inf)
+    pairs = np.empty((0, 2), np.int64)
+    turn = np.array([[math.cos(0.03), -math.sin(0.03)], [math.sin(0.03), math.cos(0.03)]])
+    made = 0
+    for _ in range(100):  # 3 rad and 1 m in all: every robot moves far beyond the skin
+        jitter = rng.normal(0.0, 2e-4, pos.shape)
+        kept = kept @ turn.T + [0.01, 0.0] + jitter
+        fresh = fresh @ turn.T + [0.01, 0.0] + jitter
+        head = head + 0.03
+        cx = kept[:, 0] + A * np.cos(head)
+        cy = kept[:, 1] + A * np.sin(head)
+        before = pairs
+        k1, d1, pairs = resolve_listed(
+            kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, NEAR * R, 0.5 * (NEAR - CLOSE) * R
+        )
+        made += pairs is not before
+        k2, d2 = resolve_contacts(fresh, head, R, A, w, c, b, 8)
+        assert (k1, d1) == (k2, d2)
+        assert kept.tobytes() == fresh.tobytes()
+    assert made <= 10  # a list made afresh whenever a robot moved r/2 would be ~80
