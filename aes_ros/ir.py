@@ -138,53 +138,17 @@ def cast_rays(
     n, k = len(cos_h), len(angles)
     if n == 0:
         return
-    centres = np.empty((n, 2))
-    finite = np.isfinite(angles).all()
-    for i in range(n):
-        centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
-        centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
-        finite = finite and math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])
-    mount = np.empty((k, 2))
-    for a in range(k):
-        mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
+    centres, rays = np.empty((n, 2)), np.empty((n, k, 4))
+    _cast_static(
+        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
+        boxes, out, centres, rays, np.empty(n, np.bool_), True,
+    )  # fmt: skip
     # Another body can only be seen if its centre is this close to this one's.
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
-    if not finite:
-        raise ValueError("ray_distances: positions and headings must be finite")
     order, start, of, nx, ny = _cell_grid(centres, reach)  # neighbours within 3 x 3 cells
-    ray = np.empty((k, 4))  # sensor point x, y and direction x, y of each sensor
     for i in range(n):
-        cx, cy, ch, sh = centres[i, 0], centres[i, 1], cos_h[i], sin_h[i]
-        for a in range(k):
-            # direction of heading + angle, by the sum formulas (no trigonometry per ray)
-            ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
-            sx, sy = cx + body_radius * ux, cy + body_radius * uy
-            ray[a, 0], ray[a, 1], ray[a, 2], ray[a, 3] = sx, sy, ux, uy
-            best = max_range
-            if len(walls) == 4:
-                x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
-                if sx <= x0 or sx >= x1 or sy <= y0 or sy >= y1:
-                    best = 0.0
-                else:
-                    if ux > 0.0:
-                        best = min(best, (x1 - sx) / ux)
-                    elif ux < 0.0:
-                        best = min(best, (x0 - sx) / ux)
-                    if uy > 0.0:
-                        best = min(best, (y1 - sy) / uy)
-                    elif uy < 0.0:
-                        best = min(best, (y0 - sy) / uy)
-            for m in range(len(circles)):
-                best = min(
-                    best, _disc_hit(sx, sy, ux, uy, circles[m, 0], circles[m, 1], circles[m, 2])
-                )
-            for m in range(len(boxes)):
-                best = min(
-                    best,
-                    _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
-                )
-            out[i, a] = best
+        cx, cy = centres[i, 0], centres[i, 1]
         ci, cj = of[i] // ny, of[i] % ny
         lo, hi = max(cj - 1, 0), min(cj + 1, ny - 1)
         # the 3 x 3 cells as three runs of consecutive cells (one per column of the grid)
@@ -196,8 +160,8 @@ def cast_rays(
                     continue
                 for a in range(k):
                     hit = _disc_hit(
-                        ray[a, 0], ray[a, 1], ray[a, 2], ray[a, 3], centres[j, 0],
-                        centres[j, 1], body_radius,
+                        rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3],
+                        centres[j, 0], centres[j, 1], body_radius,
                     )  # fmt: skip
                     out[i, a] = min(out[i, a], hit)
 
@@ -212,7 +176,8 @@ def _set_rays(
     body_radius: float,
     rays: np.ndarray,
 ) -> None:
-    """Robot i's sensor points and ray directions into ``rays[i]`` (K, 4)."""
+    """Robot i's sensor points and ray directions into ``rays[i]`` (K, 4): the direction
+    of heading + angle by the sum formulas (no trigonometry per ray)."""
     ch, sh = cos_h[i], sin_h[i]
     for a in range(mount.shape[0]):
         ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
@@ -222,7 +187,7 @@ def _set_rays(
 
 
 @njit(cache=True)
-def cast_rays_listed(
+def _cast_static(
     positions: np.ndarray,
     cos_h: np.ndarray,
     sin_h: np.ndarray,
@@ -233,24 +198,17 @@ def cast_rays_listed(
     walls: np.ndarray,
     circles: np.ndarray,
     boxes: np.ndarray,
-    pairs: np.ndarray,
     out: np.ndarray,
     centres: np.ndarray,
     rays: np.ndarray,
     ready: np.ndarray,
-) -> None:
-    """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
-    must hold every pair whose body centres are closer than 2 body_radius + max_range
-    (the offline kernel's contact list, kept longer for this: :func:`aes_ros.contacts.
-    kept_pairs`). Each pair is met once for both robots' rays; the distances are those
-    of :func:`cast_rays` to the bit (a minimum over the same hits).
-
-    centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
-    and obstacles only the robots of a pair within reach have their rays set up.
-    """
+    every_robot: bool,
+) -> np.ndarray:
+    """The body centres (N, 2), and each ray's distance to the walls, circles and boxes
+    into ``out`` (N, K); the rays (N, K, 4) of the robots with ``ready`` set, which are all
+    with ``every_robot`` or with walls or obstacles (else none: ``out`` is max_range).
+    Returns the sensors' mounting directions (K, 2)."""
     n, k = len(cos_h), len(angles)
-    reach = 2.0 * body_radius + max_range
-    reach2 = reach * reach
     mount = np.empty((k, 2))
     for a in range(k):
         mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
@@ -263,8 +221,8 @@ def cast_rays_listed(
         raise ValueError("ray_distances: positions and headings must be finite")
     static = len(walls) == 4 or len(circles) > 0 or len(boxes) > 0
     for i in range(n):
-        ready[i] = static
-        if not static:
+        ready[i] = static or every_robot
+        if not ready[i]:
             out[i, :] = max_range
             continue
         _set_rays(i, centres, cos_h, sin_h, mount, body_radius, rays)
@@ -294,6 +252,43 @@ def cast_rays_listed(
                     _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
                 )
             out[i, a] = best
+    return mount
+
+
+@njit(cache=True)
+def cast_rays_listed(
+    positions: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    body_radius: float,
+    axle_offset: float,
+    angles: np.ndarray,
+    max_range: float,
+    walls: np.ndarray,
+    circles: np.ndarray,
+    boxes: np.ndarray,
+    pairs: np.ndarray,
+    out: np.ndarray,
+    centres: np.ndarray,
+    rays: np.ndarray,
+    ready: np.ndarray,
+) -> None:
+    """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
+    must hold every pair whose body centres are closer than 2 body_radius + max_range
+    (the offline kernel's contact list, kept longer for this: :func:`aes_ros.contacts.
+    kept_pairs`). Each pair is met once for both robots' rays; the distances are those
+    of :func:`cast_rays` to the bit (a minimum over the same hits).
+
+    centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
+    and obstacles only the robots of a pair within reach have their rays set up.
+    """
+    k = len(angles)
+    mount = _cast_static(
+        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
+        boxes, out, centres, rays, ready, False,
+    )  # fmt: skip
+    reach = 2.0 * body_radius + max_range
+    reach2 = reach * reach
     for e in range(pairs.shape[0]):
         i, j = pairs[e, 0], pairs[e, 1]
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
