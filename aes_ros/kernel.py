@@ -31,10 +31,11 @@ import numpy as np
 from numba import njit, prange, uint64
 
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
-from aes_ros.contacts import CLOSE, NEAR, kept_pairs, resolve_listed
+from aes_ros.contacts import CLOSE, NEAR, resolve_listed
 from aes_ros.ir import cast_rays, cast_rays_listed
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
+from aes_ros.pair_list import kept_pairs
 
 #: Layout of the ``params`` vector passed to :func:`advance`.
 PARAM_ORDER = (
@@ -538,4 +539,7 @@ def advance(
 
 # Numba's cache checks this file only: an edit of the contact rule, the rays or the
 # constants compiled in from these modules must compile the kernel again.
-depend_on(advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.metrics")
+depend_on(
+    advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.metrics",
+    "aes_ros.pair_list",
+)  # fmt: skip

@@ -7,15 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.contacts import (
-    CLOSE,
-    NEAR,
-    contact_geometry,
-    near_pairs,
-    resolve_contacts,
-    resolve_listed,
-)
+from aes_ros.contacts import CLOSE, NEAR, contact_geometry, resolve_contacts, resolve_listed
 from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.pair_list import near_pairs
 
 R = MonaGeometry().body_radius
 A = MonaGeometry().axle_offset
