@@ -14,8 +14,9 @@ scenario:
 - ``numba, contacts on`` against ``off``: the kernel resolving body contacts after every
   step (:mod:`aes_ros.contacts`) and not, the same way (the goal: on ≤ 1.5 × off);
 - ``numba, contacts+IR on`` against the same ``off``: contacts and the IR avoidance term
-  (:data:`IR_ON`: every robot's five rays cast each step, :mod:`aes_ros.ir`), measured in
-  the same alternation (the goal: on ≤ 1.5 × off).
+  (:data:`IR_ON`: every robot's five rays cast at the scenario's ``ir_rate``, 20 Hz, which
+  is every step of this scenario, :mod:`aes_ros.ir`), measured in the same alternation (the
+  goal: on ≤ 1.5 × off).
 
 Prints a table and, as its last line,
 ``RESULT agent_steps_per_s=<numba at the largest batch> speedup_vs_loop=<ratio>
