@@ -114,9 +114,21 @@ def ray_distances(
     for i in range(n):
         cos_h[i], sin_h[i] = math.cos(headings[i]), math.sin(headings[i])
     cast_rays(
-        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
-        boxes, out,
+        positions, cos_h, sin_h, body_radius, axle_offset, mounting(angles), max_range, walls,
+        circles, boxes, out,
     )  # fmt: skip
+
+
+@njit(cache=True)
+def mounting(angles: np.ndarray) -> np.ndarray:
+    """The sensors' directions (K, 2) in the robot's frame: cos and sin of ``angles`` (K,)
+    [rad], which must be finite."""
+    mount = np.empty((len(angles), 2))
+    for a in range(len(angles)):
+        if not math.isfinite(angles[a]):
+            raise ValueError("ray_distances: the mounting angles must be finite")
+        mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
+    return mount
 
 
 @njit(cache=True)
@@ -126,7 +138,7 @@ def cast_rays(
     sin_h: np.ndarray,
     body_radius: float,
     axle_offset: float,
-    angles: np.ndarray,
+    mount: np.ndarray,
     max_range: float,
     walls: np.ndarray,
     circles: np.ndarray,
@@ -134,13 +146,14 @@ def cast_rays(
     out: np.ndarray,
 ) -> None:
     """:func:`ray_distances` from the headings' cosines and sines ``cos_h``, ``sin_h`` (N,)
-    (the offline kernel has them from its step; the same floats give the same bits)."""
-    n, k = len(cos_h), len(angles)
+    and the sensors' directions ``mount`` (K, 2) (:func:`mounting`; the offline kernel has
+    them all from its step and its constants; the same floats give the same bits)."""
+    n, k = len(cos_h), len(mount)
     if n == 0:
         return
     centres, rays = np.empty((n, 2)), np.empty((n, k, 4))
     _cast_static(
-        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
+        positions, cos_h, sin_h, body_radius, axle_offset, mount, max_range, walls, circles,
         boxes, out, centres, rays, np.empty(n, np.bool_), True,
     )  # fmt: skip
     # Another body can only be seen if its centre is this close to this one's.
@@ -193,7 +206,7 @@ def _cast_static(
     sin_h: np.ndarray,
     body_radius: float,
     axle_offset: float,
-    angles: np.ndarray,
+    mount: np.ndarray,
     max_range: float,
     walls: np.ndarray,
     circles: np.ndarray,
@@ -203,16 +216,12 @@ def _cast_static(
     rays: np.ndarray,
     ready: np.ndarray,
     every_robot: bool,
-) -> np.ndarray:
+) -> None:
     """The body centres (N, 2), and each ray's distance to the walls, circles and boxes
     into ``out`` (N, K); the rays (N, K, 4) of the robots with ``ready`` set, which are all
-    with ``every_robot`` or with walls or obstacles (else none: ``out`` is max_range).
-    Returns the sensors' mounting directions (K, 2)."""
-    n, k = len(cos_h), len(angles)
-    mount = np.empty((k, 2))
-    for a in range(k):
-        mount[a, 0], mount[a, 1] = math.cos(angles[a]), math.sin(angles[a])
-    finite = np.isfinite(angles).all()
+    with ``every_robot`` or with walls or obstacles (else none: ``out`` is max_range)."""
+    n, k = len(cos_h), len(mount)
+    finite = True
     for i in range(n):
         centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
         centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
@@ -252,7 +261,6 @@ def _cast_static(
                     _box_hit(sx, sy, ux, uy, boxes[m, 0], boxes[m, 1], boxes[m, 2], boxes[m, 3]),
                 )
             out[i, a] = best
-    return mount
 
 
 @njit(cache=True)
@@ -262,7 +270,7 @@ def cast_rays_listed(
     sin_h: np.ndarray,
     body_radius: float,
     axle_offset: float,
-    angles: np.ndarray,
+    mount: np.ndarray,
     max_range: float,
     walls: np.ndarray,
     circles: np.ndarray,
@@ -282,9 +290,9 @@ def cast_rays_listed(
     centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
     and obstacles only the robots of a pair within reach have their rays set up.
     """
-    k = len(angles)
-    mount = _cast_static(
-        positions, cos_h, sin_h, body_radius, axle_offset, angles, max_range, walls, circles,
+    k = len(mount)
+    _cast_static(
+        positions, cos_h, sin_h, body_radius, axle_offset, mount, max_range, walls, circles,
         boxes, out, centres, rays, ready, False,
     )  # fmt: skip
     reach = 2.0 * body_radius + max_range

@@ -32,7 +32,7 @@ from numba import njit, prange, uint64
 
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import CLOSE, NEAR, resolve_listed
-from aes_ros.ir import cast_rays, cast_rays_listed
+from aes_ros.ir import cast_rays, cast_rays_listed, mounting
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import kept_pairs
@@ -48,6 +48,9 @@ PARAM_ORDER = (
 )  # fmt: skip
 #: cos and sin of the IR sensors' mounting angles (the avoidance term, aes_ros.avoidance).
 _IR_COS, _IR_SIN = np.cos(IR_ANGLES), np.sin(IR_ANGLES)
+#: The IR sensors' directions in the robot's frame, for the rays (math.cos and math.sin of
+#: the angles, as aes_ros.ir.ray_distances computes them).
+_IR_MOUNT = mounting(IR_ANGLES)
 #: With contacts and the IR rays on, the rays take their candidate pairs from the contact
 #: list, which then holds every pair within the rays' reach (2 r + d_max) plus this margin
 #: [m] (the list's centres and the rays' differ by rounding), and is made again once a
@@ -419,7 +422,7 @@ def advance(
                     have_trig = True
                 listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
                 cast_rays_listed(
-                    pos, trig_c, trig_s, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls,
+                    pos, trig_c, trig_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
                     circles, boxes, listed, ranges, ray_centres, ray_lines, ray_ready,
                 )  # fmt: skip
             elif casting:
@@ -427,7 +430,7 @@ def advance(
                     ray_c[i] = math.cos(head[i])
                     ray_s[i] = math.sin(head[i])
                 cast_rays(
-                    pos, ray_c, ray_s, radius, axle_offset, IR_ANGLES, AVOIDANCE_RANGE, walls,
+                    pos, ray_c, ray_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
                     circles, boxes, ranges,
                 )  # fmt: skip
             sox, soy = ox, oy  # the rotation centre the robots see

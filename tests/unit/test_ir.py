@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from aes_ros.ir import IR_ANGLES, IrResponse, cast_rays, ir_ranges, ray_distances
+from aes_ros.ir import IR_ANGLES, IrResponse, cast_rays, ir_ranges, mounting, ray_distances
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 
@@ -153,8 +153,8 @@ def test_rays_from_the_kernels_cosines_are_the_rays_from_headings():
     a, b = np.empty((100, 5)), np.empty((100, 5))
     ray_distances(positions, headings, R, A, IR_ANGLES, MAX, walls, circles, boxes, a)
     cast_rays(
-        positions, np.cos(headings), np.sin(headings), R, A, IR_ANGLES, MAX, walls, circles,
-        boxes, b,
+        positions, np.cos(headings), np.sin(headings), R, A, mounting(IR_ANGLES), MAX, walls,
+        circles, boxes, b,
     )  # fmt: skip
     assert a.tobytes() == b.tobytes()
     assert (a < MAX).sum() > 50
