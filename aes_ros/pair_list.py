@@ -176,7 +176,7 @@ def kept_pairs(
     """
     if not _stale(cx, cy, x_ref, y_ref, skin - TOLERANCE):
         return pairs
-    if np.isfinite(x_ref).all():  # inf: no list yet
+    if math.isfinite(x_ref[0]):  # inf: no list yet (else the centres a list was made at)
         _follow_rigidly(cx, cy, x_ref, y_ref)
         if not _stale(cx, cy, x_ref, y_ref, skin - TOLERANCE):
             return pairs
