@@ -91,6 +91,19 @@ def _separate_listed(
 
 
 @njit(cache=True)
+def _closest(cx: np.ndarray, cy: np.ndarray, pairs: np.ndarray) -> float:
+    """The smallest squared centre distance [m²] of ``pairs`` (inf for none; NaN skipped)."""
+    best = np.inf
+    for e in range(pairs.shape[0]):
+        dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
+        dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
+        d2 = dx * dx + dy * dy
+        if d2 < best:
+            best = d2
+    return best
+
+
+@njit(cache=True)
 def _push_out(
     positions: np.ndarray,
     cx: np.ndarray,
@@ -220,13 +233,7 @@ def resolve_listed(
             settled = True
             break
     if not settled:
-        best = np.inf
-        for e in range(pairs.shape[0]):
-            dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
-            dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
-            d2 = dx * dx + dy * dy
-            if d2 < best:
-                best = d2
+        best = _closest(cx, cy, pairs)
     close = CLOSE * radius
     return contacts, (math.sqrt(best) if best < close * close else np.inf), pairs
 
@@ -324,15 +331,12 @@ def measure_contacts(
     reach = 2.0 * radius + tolerance
     close = CLOSE * radius
     pairs = near_pairs(cx, cy, max(reach, close))
+    best = _closest(cx, cy, pairs)
     found = 0
-    best = np.inf
     for e in range(pairs.shape[0]):
         dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
         dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
-        d2 = dx * dx + dy * dy
-        if d2 < best:
-            best = d2
-        if d2 <= reach * reach:
+        if dx * dx + dy * dy <= reach * reach:
             found += 1
     for i in range(n):
         for c in range(circles.shape[0]):

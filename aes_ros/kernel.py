@@ -232,6 +232,25 @@ def _avoidance(ranges: np.ndarray, w_o: float, c: float, s: float) -> tuple[floa
     return c * bx - s * by, s * bx + c * by
 
 
+@njit(cache=True)
+def _body_centres(
+    pos: np.ndarray,
+    head: np.ndarray,
+    axle_offset: float,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    body_x: np.ndarray,
+    body_y: np.ndarray,
+) -> None:
+    """The headings' cos and sin and the body centres [m] of ``pos`` (N, 2) [m] and
+    ``head`` (N,) [rad], into the (N,) arrays given."""
+    for i in range(head.shape[0]):
+        cos_h[i] = math.cos(head[i])
+        sin_h[i] = math.sin(head[i])
+        body_x[i] = pos[i, 0] + axle_offset * cos_h[i]
+        body_y[i] = pos[i, 1] + axle_offset * sin_h[i]
+
+
 @njit(inline="always")
 def _centroid(points: np.ndarray) -> tuple[float, float]:
     """Mean of ``points[:, 0]`` and ``points[:, 1]`` (``points``: (N, ≥2) [m]), summed in
@@ -414,11 +433,7 @@ def advance(
             casting = sensing and t % ir_period == 0
             if casting and touching:  # every robot's IR ranges, cast in the true state
                 if not have_trig:  # no centres yet (this call's first step)
-                    for i in range(N):
-                        trig_c[i] = math.cos(head[i])
-                        trig_s[i] = math.sin(head[i])
-                        body_x[i] = pos[i, 0] + axle_offset * trig_c[i]
-                        body_y[i] = pos[i, 1] + axle_offset * trig_s[i]
+                    _body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                     have_trig = True
                 listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
                 cast_rays_listed(
@@ -526,11 +541,7 @@ def advance(
             pos[:, :] = new_pos
             head[:] = new_head
             if touching:  # aes_ros.contacts.resolve_contacts, its centres computed here
-                for i in range(N):
-                    trig_c[i] = math.cos(head[i])
-                    trig_s[i] = math.sin(head[i])
-                    body_x[i] = pos[i, 0] + axle_offset * trig_c[i]
-                    body_y[i] = pos[i, 1] + axle_offset * trig_s[i]
+                _body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                 have_trig = True
                 found, closest, listed = resolve_listed(
                     pos, body_x, body_y, radius, walls, circles, boxes, iterations,
