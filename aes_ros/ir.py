@@ -283,9 +283,9 @@ def cast_rays_listed(
 ) -> None:
     """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
     must hold every pair whose body centres are closer than 2 body_radius + max_range
-    (the offline kernel's contact list, kept longer for this: :func:`aes_ros.contacts.
-    kept_pairs`). Each pair is met once for both robots' rays; the distances are those
-    of :func:`cast_rays` to the bit (a minimum over the same hits).
+    (the offline kernel's contact list, kept longer for this:
+    :func:`aes_ros.pair_list.kept_pairs`). Each pair is met once for both robots' rays;
+    the distances are those of :func:`cast_rays` to the bit (a minimum over the same hits).
 
     centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
     and obstacles only the robots of a pair within reach have their rays set up.

@@ -373,6 +373,7 @@ class _NumpyStepper:
         self.neighbors, self.rest = neighbors, rest
         self.noise, self.record = noise, record
         self.bodies = contact_arrays(scenario.values)
+        self.ir_period = ir_period_steps(scenario.ir_rate, scenario.dt)
 
     def advance(
         self,
@@ -413,7 +414,7 @@ class _NumpyStepper:
                     refresh += 1
             forces = total_forces(seen_pos, self.neighbors, self.rest, self.gains, sc.command)
             if self.gains.w_o > 0.0:  # avoidance: each robot's own IR sensors, true state
-                if (first_step + s) % ir_period_steps(sc.ir_rate, sc.dt) == 0:
+                if (first_step + s) % self.ir_period == 0:
                     self.ranges = self._ranges(pos, head)
                 forces = forces + avoidance_force(self.ranges, head, self.gains.w_o)
             noise = (xi_x[:, s], xi_y[:, s], xi_theta[:, s]) if self.noise else None
