@@ -32,6 +32,8 @@ from aes_ros.mona.sensors import IrModel
 IR_ANGLES = np.radians(IR_BEARINGS_DEG)
 #: An empty (0,) or (0, k) array: no walls, circles or boxes.
 NO_WALLS = np.zeros(0)
+#: Relative looseness of the frame test that picks which rays can meet another robot.
+_FRAME_SLACK = 1e-6
 
 
 @njit(inline="always")
@@ -148,13 +150,13 @@ def cast_rays(
     """:func:`ray_distances` from the headings' cosines and sines ``cos_h``, ``sin_h`` (N,)
     and the sensors' directions ``mount`` (K, 2) (:func:`mounting`; the offline kernel has
     them all from its step and its constants; the same floats give the same bits)."""
-    n, k = len(cos_h), len(mount)
+    n = len(cos_h)
     if n == 0:
         return
-    centres, rays = np.empty((n, 2)), np.empty((n, k, 4))
+    centres = np.empty((n, 2))
     _cast_static(
         positions, cos_h, sin_h, body_radius, axle_offset, mount, max_range, walls, circles,
-        boxes, out, centres, rays, np.empty(n, np.bool_), True,
+        boxes, out, centres,
     )  # fmt: skip
     # Another body can only be seen if its centre is this close to this one's.
     reach = 2.0 * body_radius + max_range
@@ -171,32 +173,55 @@ def cast_rays(
                 dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
                 if j == i or dx * dx + dy * dy >= reach2:
                     continue
-                for a in range(k):
-                    hit = _disc_hit(
-                        rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3],
-                        centres[j, 0], centres[j, 1], body_radius,
-                    )  # fmt: skip
-                    out[i, a] = min(out[i, a], hit)
+                _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, out)
 
 
 @njit(inline="always")
-def _set_rays(
+def _ray(
     i: int,
+    a: int,
     centres: np.ndarray,
     cos_h: np.ndarray,
     sin_h: np.ndarray,
     mount: np.ndarray,
     body_radius: float,
-    rays: np.ndarray,
-) -> None:
-    """Robot i's sensor points and ray directions into ``rays[i]`` (K, 4): the direction
-    of heading + angle by the sum formulas (no trigonometry per ray)."""
+) -> tuple[float, float, float, float]:
+    """Robot i's sensor a: its point (sx, sy) [m] on the rim and direction (ux, uy), the
+    direction of heading + angle by the sum formulas (no trigonometry per ray)."""
     ch, sh = cos_h[i], sin_h[i]
+    ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
+    return centres[i, 0] + body_radius * ux, centres[i, 1] + body_radius * uy, ux, uy
+
+
+@njit(inline="always")
+def _see_robot(
+    i: int,
+    j: int,
+    centres: np.ndarray,
+    cos_h: np.ndarray,
+    sin_h: np.ndarray,
+    mount: np.ndarray,
+    body_radius: float,
+    out: np.ndarray,
+) -> None:
+    """Robot i's rays against robot j's body disc, into ``out[i]`` (the minimum).
+
+    In i's frame a ray meets the disc, or starts inside it, only if the disc's centre is
+    within a radius of the ray's line and not behind the sensor's side of the body; only
+    those rays are cast (with :func:`_disc_hit`, the same bits as casting all of them: the
+    others miss). The test is loose by ``_FRAME_SLACK`` so rounding never skips a hit."""
+    dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
+    ch, sh = cos_h[i], sin_h[i]
+    ahead, left = dx * ch + dy * sh, dy * ch - dx * sh
+    line2 = body_radius * body_radius * (1.0 + _FRAME_SLACK)
     for a in range(mount.shape[0]):
-        ux, uy = ch * mount[a, 0] - sh * mount[a, 1], sh * mount[a, 0] + ch * mount[a, 1]
-        rays[i, a, 0] = centres[i, 0] + body_radius * ux
-        rays[i, a, 1] = centres[i, 1] + body_radius * uy
-        rays[i, a, 2], rays[i, a, 3] = ux, uy
+        ca, sa = mount[a, 0], mount[a, 1]
+        off_line = left * ca - ahead * sa
+        if off_line * off_line > line2 or ahead * ca + left * sa < -_FRAME_SLACK * body_radius:
+            continue
+        sx, sy, ux, uy = _ray(i, a, centres, cos_h, sin_h, mount, body_radius)
+        hit = _disc_hit(sx, sy, ux, uy, centres[j, 0], centres[j, 1], body_radius)
+        out[i, a] = min(out[i, a], hit)
 
 
 @njit(cache=True)
@@ -213,13 +238,9 @@ def _cast_static(
     boxes: np.ndarray,
     out: np.ndarray,
     centres: np.ndarray,
-    rays: np.ndarray,
-    ready: np.ndarray,
-    every_robot: bool,
 ) -> None:
-    """The body centres (N, 2), and each ray's distance to the walls, circles and boxes
-    into ``out`` (N, K); the rays (N, K, 4) of the robots with ``ready`` set, which are all
-    with ``every_robot`` or with walls or obstacles (else none: ``out`` is max_range)."""
+    """The body centres into ``centres`` (N, 2), and each ray's distance to the walls,
+    circles and boxes into ``out`` (N, K) (max_range where there are none)."""
     n, k = len(cos_h), len(mount)
     finite = True
     for i in range(n):
@@ -228,15 +249,12 @@ def _cast_static(
         finite = finite and math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])
     if not finite:
         raise ValueError("ray_distances: positions and headings must be finite")
-    static = len(walls) == 4 or len(circles) > 0 or len(boxes) > 0
+    out[:, :] = max_range
+    if not (len(walls) == 4 or len(circles) > 0 or len(boxes) > 0):
+        return
     for i in range(n):
-        ready[i] = static or every_robot
-        if not ready[i]:
-            out[i, :] = max_range
-            continue
-        _set_rays(i, centres, cos_h, sin_h, mount, body_radius, rays)
         for a in range(k):
-            sx, sy, ux, uy = rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3]
+            sx, sy, ux, uy = _ray(i, a, centres, cos_h, sin_h, mount, body_radius)
             best = max_range
             if len(walls) == 4:
                 x0, x1, y0, y1 = walls[0], walls[1], walls[2], walls[3]
@@ -278,22 +296,17 @@ def cast_rays_listed(
     pairs: np.ndarray,
     out: np.ndarray,
     centres: np.ndarray,
-    rays: np.ndarray,
-    ready: np.ndarray,
 ) -> None:
     """:func:`cast_rays` with the robots' candidate pairs given: ``pairs`` (P, 2) int64
     must hold every pair whose body centres are closer than 2 body_radius + max_range
     (the offline kernel's contact list, kept longer for this:
     :func:`aes_ros.pair_list.kept_pairs`). Each pair is met once for both robots' rays;
     the distances are those of :func:`cast_rays` to the bit (a minimum over the same hits).
-
-    centres (N, 2), rays (N, K, 4) and ready (N,) bool are scratch space. Without walls
-    and obstacles only the robots of a pair within reach have their rays set up.
+    ``centres`` (N, 2) is scratch space.
     """
-    k = len(mount)
     _cast_static(
         positions, cos_h, sin_h, body_radius, axle_offset, mount, max_range, walls, circles,
-        boxes, out, centres, rays, ready, False,
+        boxes, out, centres,
     )  # fmt: skip
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
@@ -302,21 +315,8 @@ def cast_rays_listed(
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
         if dx * dx + dy * dy >= reach2:
             continue
-        for m in (i, j):
-            if not ready[m]:
-                _set_rays(m, centres, cos_h, sin_h, mount, body_radius, rays)
-                ready[m] = True
-        for a in range(k):
-            hit = _disc_hit(
-                rays[i, a, 0], rays[i, a, 1], rays[i, a, 2], rays[i, a, 3], centres[j, 0],
-                centres[j, 1], body_radius,
-            )  # fmt: skip
-            out[i, a] = min(out[i, a], hit)
-            hit = _disc_hit(
-                rays[j, a, 0], rays[j, a, 1], rays[j, a, 2], rays[j, a, 3], centres[i, 0],
-                centres[i, 1], body_radius,
-            )  # fmt: skip
-            out[j, a] = min(out[j, a], hit)
+        _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, out)
+        _see_robot(j, i, centres, cos_h, sin_h, mount, body_radius, out)
 
 
 @njit(cache=True)

@@ -352,8 +352,6 @@ def advance(
         ray_c = np.empty(N if sensing else 0)  # the headings' cos and sin for the rays
         ray_s = np.empty(N if sensing else 0)
         ray_centres = np.empty((N if sensing else 0, 2))  # the rays' scratch space
-        ray_lines = np.empty((N if sensing else 0, IR_ANGLES.shape[0], 4))
-        ray_ready = np.empty(N if sensing else 0, np.bool_)
         stiffness = np.empty((N, K))  # k / l_ij, so the loop divides once per spring
         for i in range(N):
             for slot in range(K):
@@ -432,13 +430,14 @@ def advance(
                     _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             casting = sensing and t % ir_period == 0
             if casting and touching:  # every robot's IR ranges, cast in the true state
-                if not have_trig:  # no centres yet (this call's first step)
+                if not have_trig:  # no centres and no list yet (this call's first step)
                     _body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                     have_trig = True
-                listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
+                    listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
+                # else the list the last step's resolve_listed returned, valid for these
                 cast_rays_listed(
                     pos, trig_c, trig_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
-                    circles, boxes, listed, ranges, ray_centres, ray_lines, ray_ready,
+                    circles, boxes, listed, ranges, ray_centres,
                 )  # fmt: skip
             elif casting:
                 for i in range(N):

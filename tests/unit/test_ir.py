@@ -139,6 +139,23 @@ def test_the_kernel_equals_a_plain_numpy_reference(n, spread):
         assert (ranges == 0.0).sum() > 100
 
 
+@pytest.mark.parametrize("k", range(5))
+@pytest.mark.parametrize("side", [1.0 - 1e-7, 1.0 + 1e-7], ids=["grazed", "passed by"])
+def test_a_ray_that_grazes_a_robot_sees_it(k, side):
+    """Only the rays whose line passes within a radius of another robot are cast at it
+    (a test in the robot's frame); one that just grazes the other disc still sees it,
+    one that just passes it does not."""
+    heading = 0.3
+    s, u = sensor([0.0, 0.0], heading, k)
+    normal = np.array([-u[1], u[0]])
+    other = s + 0.05 * u + side * R * normal  # the other centre, just beside the ray's line
+    positions = np.array([[0.0, 0.0], pose_with_centre(other, 1.0)])
+    ranges = ir_ranges(positions, [heading, 1.0])
+    expected = reference(positions, np.array([heading, 1.0]))
+    np.testing.assert_allclose(ranges, expected, atol=1e-12)
+    assert (ranges[0, k] < MAX) == (side < 1.0)
+
+
 def test_rays_from_the_kernels_cosines_are_the_rays_from_headings():
     """The offline kernel passes the cos and sin of the headings it already has
     (cast_rays); the distances are those of ray_distances to the bit."""
