@@ -117,6 +117,8 @@ def _push_out(
     Returns the overlaps found; a body with a non-finite centre is left as it is."""
     n = cx.shape[0]
     found = 0
+    if walls.shape[0] != 4 and circles.shape[0] == 0 and boxes.shape[0] == 0:
+        return found
     for i in range(n):
         if not (math.isfinite(cx[i]) and math.isfinite(cy[i])):
             continue
