@@ -161,6 +161,7 @@ def cast_rays(
     # Another body can only be seen if its centre is this close to this one's.
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
+    behind = _blind_behind(mount, body_radius)
     order, start, of, nx, ny = _cell_grid(centres, reach)  # neighbours within 3 x 3 cells
     for i in range(n):
         cx, cy = centres[i, 0], centres[i, 1]
@@ -173,7 +174,7 @@ def cast_rays(
                 dx, dy = centres[j, 0] - cx, centres[j, 1] - cy
                 if j == i or dx * dx + dy * dy >= reach2:
                     continue
-                _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, out)
+                _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, behind, out)
 
 
 @njit(inline="always")
@@ -194,6 +195,20 @@ def _ray(
 
 
 @njit(inline="always")
+def _blind_behind(mount: np.ndarray, body_radius: float) -> float:
+    """How far behind a robot's centre [m, negative] another body's centre must lie for
+    none of the sensors ``mount`` (K, 2) to see it: every point of a ray is at least
+    body_radius · min cos(angle) ahead, so with all sensors on the front half a disc whose
+    front edge is further back is out of sight (-inf if a sensor looks back or sideways)."""
+    least = np.inf
+    for a in range(mount.shape[0]):
+        least = min(least, mount[a, 0])
+    if not least > 0.0:
+        return -np.inf
+    return body_radius * (least - 1.0) - _FRAME_SLACK * body_radius
+
+
+@njit(inline="always")
 def _see_robot(
     i: int,
     j: int,
@@ -202,6 +217,7 @@ def _see_robot(
     sin_h: np.ndarray,
     mount: np.ndarray,
     body_radius: float,
+    behind: float,
     out: np.ndarray,
 ) -> None:
     """Robot i's rays against robot j's body disc, into ``out[i]`` (the minimum).
@@ -209,10 +225,14 @@ def _see_robot(
     In i's frame a ray meets the disc, or starts inside it, only if the disc's centre is
     within a radius of the ray's line and not behind the sensor's side of the body; only
     those rays are cast (with :func:`_disc_hit`, the same bits as casting all of them: the
-    others miss). The test is loose by ``_FRAME_SLACK`` so rounding never skips a hit."""
+    others miss); none if j's centre lies ``behind`` [m] (:func:`_blind_behind`) or further
+    back. The tests are loose by ``_FRAME_SLACK`` so rounding never skips a hit."""
     dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
     ch, sh = cos_h[i], sin_h[i]
-    ahead, left = dx * ch + dy * sh, dy * ch - dx * sh
+    ahead = dx * ch + dy * sh
+    if ahead < behind:
+        return
+    left = dy * ch - dx * sh
     line2 = body_radius * body_radius * (1.0 + _FRAME_SLACK)
     for a in range(mount.shape[0]):
         ca, sa = mount[a, 0], mount[a, 1]
@@ -310,13 +330,14 @@ def cast_rays_listed(
     )  # fmt: skip
     reach = 2.0 * body_radius + max_range
     reach2 = reach * reach
+    behind = _blind_behind(mount, body_radius)
     for e in range(pairs.shape[0]):
         i, j = pairs[e, 0], pairs[e, 1]
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
         if dx * dx + dy * dy >= reach2:
             continue
-        _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, out)
-        _see_robot(j, i, centres, cos_h, sin_h, mount, body_radius, out)
+        _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, behind, out)
+        _see_robot(j, i, centres, cos_h, sin_h, mount, body_radius, behind, out)
 
 
 @njit(cache=True)
