@@ -62,7 +62,10 @@ def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
             slot_of[i] = fill[home[i]]
             fill[home[i]] += 1
     cutoff2 = cutoff * cutoff
-    keys = np.empty(2 * n + 8, np.int64)
+    # every candidate is written and counted only if close (no branch to mispredict), so
+    # the buffers hold at least the candidates of the robot at hand
+    first = np.empty(4 * n + 16, np.int64)
+    second = np.empty(4 * n + 16, np.int64)
     count = 0
     for i in range(n):
         if home[i] < 0:
@@ -73,32 +76,60 @@ def near_pairs(cx: np.ndarray, cy: np.ndarray, cutoff: float) -> np.ndarray:
         # half the 3 x 3 stencil, so each pair is met once, as two runs of consecutive
         # cells: the own cell after i (members in index order) and the cell above, then
         # the three cells of the next column
+        own_first, own_last = slot_of[i] + 1, start[ix * ny + top + 1]
+        next_first, next_last = 0, 0
+        if ix + 1 < nx:
+            next_first = start[(ix + 1) * ny + max(iy - 1, 0)]
+            next_last = start[(ix + 1) * ny + top + 1]
+        need = count + (own_last - own_first) + (next_last - next_first)
+        if need > first.shape[0]:
+            first = _grown(first, count, 2 * need)
+            second = _grown(second, count, 2 * need)
         for run in range(2):
-            if run == 0:
-                first = slot_of[i] + 1
-                last = start[ix * ny + top + 1]
-            elif ix + 1 < nx:
-                first = start[(ix + 1) * ny + max(iy - 1, 0)]
-                last = start[(ix + 1) * ny + top + 1]
-            else:
-                break
-            for slot in range(first, last):
+            lo, hi = (own_first, own_last) if run == 0 else (next_first, next_last)
+            for slot in range(lo, hi):
                 j = members[slot]
                 dx = cx[j] - cx[i]
                 dy = cy[j] - cy[i]
-                if dx * dx + dy * dy >= cutoff2:
-                    continue
-                if count == keys.shape[0]:
-                    grown = np.empty(2 * count, np.int64)
-                    grown[:count] = keys
-                    keys = grown
-                keys[count] = min(i, j) * n + max(i, j)
-                count += 1
-    keys = np.sort(keys[:count])
-    pairs = np.empty((count, 2), np.int64)
-    for e in range(count):
-        pairs[e, 0] = keys[e] // n
-        pairs[e, 1] = keys[e] - pairs[e, 0] * n
+                first[count] = min(i, j)
+                second[count] = max(i, j)
+                count += dx * dx + dy * dy < cutoff2
+    return _in_order(first[:count], second[:count], n)
+
+
+@njit(cache=True)
+def _grown(values: np.ndarray, count: int, size: int) -> np.ndarray:
+    """A copy of ``values[:count]`` in a new array of ``size``."""
+    out = np.empty(size, values.dtype)
+    out[:count] = values[:count]
+    return out
+
+
+@njit(cache=True)
+def _in_order(first: np.ndarray, second: np.ndarray, n: int) -> np.ndarray:
+    """The pairs (first[e], second[e]) (K,) in lexicographic order, as (K, 2): a counting
+    sort by the first index, then each index's few partners by insertion."""
+    end = np.zeros(n + 1, np.int64)
+    for e in range(first.shape[0]):
+        end[first[e] + 1] += 1
+    for i in range(n):
+        end[i + 1] += end[i]
+    pairs = np.empty((first.shape[0], 2), np.int64)
+    for e in range(first.shape[0]):  # end[i] runs from where i's pairs start to their end
+        slot = end[first[e]]
+        end[first[e]] = slot + 1
+        pairs[slot, 0] = first[e]
+        pairs[slot, 1] = second[e]
+    begin = 0
+    for i in range(n):
+        for slot in range(begin + 1, end[i]):
+            j = pairs[slot, 1]
+            into = slot
+            while into > begin and pairs[into - 1, 1] > j:
+                pairs[into, 1] = pairs[into - 1, 1]
+                into -= 1
+            pairs[into, 1] = j
+        begin = end[i]
     return pairs
 
 
