@@ -262,12 +262,12 @@ def _cast_static(
     """The body centres into ``centres`` (N, 2), and each ray's distance to the walls,
     circles and boxes into ``out`` (N, K) (max_range where there are none)."""
     n, k = len(cos_h), len(mount)
-    finite = True
+    nan_if_not_finite = 0.0  # 0 · ±inf and 0 · NaN are NaN: one test after the loop
     for i in range(n):
         centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
         centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
-        finite = finite and math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])
-    if not finite:
+        nan_if_not_finite += 0.0 * centres[i, 0] + 0.0 * centres[i, 1]
+    if nan_if_not_finite != 0.0:
         raise ValueError("ray_distances: positions and headings must be finite")
     out[:, :] = max_range
     if not (len(walls) == 4 or len(circles) > 0 or len(boxes) > 0):
