@@ -138,12 +138,12 @@ def _stale(
     cx: np.ndarray, cy: np.ndarray, x_ref: np.ndarray, y_ref: np.ndarray, skin: float
 ) -> bool:
     """Whether a centre has moved more than ``skin`` [m] since the list was made."""
+    moved = 0  # counted over all centres, without a branch, so the loop runs in SIMD
     for i in range(cx.shape[0]):
         dx = cx[i] - x_ref[i]
         dy = cy[i] - y_ref[i]
-        if not dx * dx + dy * dy <= skin * skin:  # also a NaN
-            return True
-    return False
+        moved += not dx * dx + dy * dy <= skin * skin  # also a NaN
+    return moved > 0
 
 
 @njit(cache=True)
