@@ -7,9 +7,9 @@ radius r centred ``axle_offset`` ahead of the robot's pose point (the axle midpo
 :func:`resolve_contacts` separates overlapping bodies by moving their centres (the heading
 is kept): position-based separation, a few Gauss-Seidel sweeps over the overlapping
 pairs in lexicographic order, each sweep ending with the walls and obstacles. Candidate
-pairs come from a spatial grid of cells 4r (:func:`aes_ros.pair_list.near_pairs`); the
-simulator's kernel keeps that list over steps until a body has moved r/2 from where the
-list saw it (:func:`resolve_listed`, :func:`aes_ros.pair_list.kept_pairs`), which gives
+pairs come from a spatial grid (:func:`aes_ros.pair_list.near_pairs`); the simulator's
+kernel keeps its list (of pairs closer than 5r) over steps until a body has moved r from
+where the list saw it (:func:`resolve_listed`, :func:`aes_ros.pair_list.kept_pairs`), which gives
 the same bits as a list made afresh.
 
 Every loop runs in a fixed order (ties in robot index order), so the result is
