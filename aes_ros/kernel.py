@@ -221,14 +221,15 @@ def _spring_forces(
 
 
 @njit(inline="always")
-def _avoidance(ranges: np.ndarray, w_o: float, c: float, s: float) -> tuple[float, float]:
-    """The IR repulsion f_o (:func:`aes_ros.avoidance.avoidance_force`) of one robot with
-    ``ranges`` (5,) [m] and heading (cos, sin) = (c, s), world frame."""
+def _avoidance(ranges: np.ndarray, i: int, w_o: float, c: float, s: float) -> tuple[float, float]:
+    """The IR repulsion f_o (:func:`aes_ros.avoidance.avoidance_force`) of robot i with
+    ``ranges[i]`` (5,) [m] and heading (cos, sin) = (c, s), world frame (indexed, not a
+    row view: a view per robot and step costs a reference count)."""
     bx = 0.0
     by = 0.0
-    for a in range(ranges.shape[0]):
-        if ranges[a] < AVOIDANCE_RANGE:
-            push = min(1.0 - ranges[a] / AVOIDANCE_RANGE, 1.0)
+    for a in range(ranges.shape[1]):
+        if ranges[i, a] < AVOIDANCE_RANGE:
+            push = min(1.0 - ranges[i, a] / AVOIDANCE_RANGE, 1.0)
             bx += push * _IR_COS[a]
             by += push * _IR_SIN[a]
     bx = -w_o * bx
@@ -514,7 +515,7 @@ def advance(
                     seen_c = view[i, 2]
                     seen_s = view[i, 3]
                 if sensing:  # avoidance: the robot's own sensors, its true heading
-                    ax, ay = _avoidance(ranges[i], w_o, c, s)
+                    ax, ay = _avoidance(ranges, i, w_o, c, s)
                     fx += ax
                     fy += ay
                 turn_noise = 0.0
