@@ -28,9 +28,12 @@ from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 #: Seconds the reaper waits for live peers (a ``ros2 topic echo``, a test's probe) to let
 #: go of the dead processes' ports before it removes them. Nobody waits for the reaper,
-#: so it waits longer than a launch's own stop (2 s): on a loaded machine a peer held a
-#: port for more than 2 s, and the file was left behind once it let go (seen in CI).
-SETTLE = 10.0
+#: so it waits longer than a launch's own stop (2 s). A peer lets go of a port about
+#: 0.3 s after its participant said goodbye, but the launcher's own participant, killed,
+#: says none: a peer keeps its port mapped until that participant's lease runs out
+#: (Fast DDS's default, 20 s), and with 10 s here the file was left behind once it let
+#: go (seen in CI). So longer than the lease.
+SETTLE = 25.0
 
 
 def alive(pid: int, started: int) -> bool:
