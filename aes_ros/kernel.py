@@ -56,8 +56,8 @@ _IR_MOUNT = mounting(IR_ANGLES)
 #: [m] (the list's centres and the rays' differ by rounding), and is made again once a
 #: body has moved _IR_LIST_SKIN radii (_CONTACT_LIST_SKIN without the rays). Measured at
 #: 100 robots in the combined scenario: the noise moves bodies about a skin in 3 steps at
-#: 0.5 radii, 7 at 1, so a list made at twice that skin is made a third as often, and
-#: sweeping its extra pairs costs less than the lists saved; at 2 radii and more it does not.
+#: 0.5 radii, 7 at 1, so a list made at twice that skin is made less than half as often,
+#: and sweeping its extra pairs costs less than the lists saved; 2 radii were no faster.
 _LIST_MARGIN = 1e-6
 _IR_LIST_SKIN = 1.5
 _CONTACT_LIST_SKIN = 1.0
