@@ -74,6 +74,9 @@ class RunWriter:
         #: Samples on disk, and the sim time [s] of the last of them.
         self.written = 0
         self.t_written: float | None = None
+        #: Samples added, and the sim times [s] of the first and the last of them.
+        self.added = 0
+        self.t_added: tuple[float, float] | None = None
         self._pending: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._previous: Trajectory | None = None  # the last sample written
         self._last_flush = clock()
@@ -92,6 +95,8 @@ class RunWriter:
     def add(self, t: float, positions: np.ndarray, headings: np.ndarray) -> None:
         """One sample: sim time [s], positions (N, 2) [m], headings (N,) [rad]."""
         self._pending.append((t, positions, headings))
+        self.added += 1
+        self.t_added = (t, t) if self.t_added is None else (self.t_added[0], t)
         if self._clock() - self._last_flush >= self.flush_every:
             self.flush()
 
@@ -110,6 +115,16 @@ class RunWriter:
             self.add(times[k], positions[k], headings[k])
             k += 1
         return k
+
+    def end_gap(self, t_end: float) -> float:
+        """How far [s] the samples added end before sim time ``t_end`` [s], when by more
+        than 10 of their mean intervals (0 otherwise: they reach it, give or take a
+        frame or two a camera dropped)."""
+        if self.t_added is None or self.added < 2:
+            return 0.0
+        first, last = self.t_added
+        interval = (last - first) / (self.added - 1)
+        return t_end - last if t_end - last > 10 * interval else 0.0
 
     def flush(self) -> None:
         """Write the pending samples to ``trajectory.h5`` and commit them, then their

@@ -76,19 +76,6 @@ LATCHED_WRITER = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
-#: The bridge's publishers of /clock and /swarm/poses. Every reader in the system
-#: reads them best-effort (SENSOR: a late pose is worthless to a controller; rclpy's
-#: /clock subscription is best-effort too), which a reliable writer serves just the
-#: same. The recorder and the launcher read them reliably, so that a datagram missed
-#: while busy is resent instead of leaving a step out of the bag or the run's outputs
-#: (tests/system/test_recording.py, tests/system/test_perception_ros.py).
-STREAM_WRITER = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST,
-    depth=50,
-    reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE,
-)
-
 #: Queue depth of the readers whose messages are a run's outputs (the recorder's, the
 #: launcher's of the poses): the middleware's threads go on receiving (and acknowledging)
 #: into them while the reader's executor is held up, so they bound how long it may lag
@@ -96,6 +83,25 @@ STREAM_WRITER = QoSProfile(
 #: messages only while the reader lags, so a deep one costs memory only then.
 #: docs/reliability.md#runs-of-hours.
 OUTPUT_DEPTH = 1000
+
+
+#: The publishers of /clock and /swarm/poses (the bridge's, the tracker's) and of
+#: /sim/ground_truth/poses. Every reader in the system reads them best-effort (SENSOR:
+#: a late pose is worthless to a controller; rclpy's /clock subscription is best-effort
+#: too), which a reliable writer serves just the same. The recorder and the launcher
+#: read them reliably, so that a datagram missed while busy is resent instead of
+#: leaving a step out of the bag or the run's outputs (tests/system/test_recording.py,
+#: tests/system/test_perception_ros.py). The writer keeps as many as those readers
+#: queue: a reader whose whole process is held up (descheduled, stopped) acknowledges
+#: nothing, and with a history of 50 a launcher stopped for 1.5 s of a lockstep run at
+#: full speed (over 160 steps/s) found the samples it had missed gone, the next one past
+#: the run's end, and its outputs ended at 0.35 s of 10 (test_perception_ros).
+STREAM_WRITER = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=OUTPUT_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
 
 
 #: /swarm/markers as a viewer reads it (RViz2, Foxglove): reliable (RViz2's default)

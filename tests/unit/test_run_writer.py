@@ -229,6 +229,21 @@ def test_add_from_takes_growing_samples_where_it_stopped_up_to_t_end(tmp_path: P
     np.testing.assert_array_equal(traj.times, result.times[2:31])
 
 
+def test_outputs_that_end_short_of_the_run_are_told_apart_from_complete_ones(
+    tmp_path: Path, run
+) -> None:
+    """A launcher that missed the samples between step 7 and the run's end (held up
+    longer than the bridge keeps them) is told how much its outputs lack; complete
+    outputs, and ones missing a frame or two at the end, are not flagged."""
+    sc, result = run
+    t_end = float(result.times[-1])
+    writer = stream(tmp_path / "short", sc, result, Clock(), upto=8)
+    assert writer.end_gap(t_end) == pytest.approx(t_end - result.times[7])
+    assert stream(tmp_path / "full", sc, result, Clock()).end_gap(t_end) == 0.0
+    n = len(result.times)
+    assert stream(tmp_path / "two", sc, result, Clock(), upto=n - 2).end_gap(t_end) == 0.0
+
+
 def test_finishing_a_long_run_takes_memory_independent_of_its_length(tmp_path: Path) -> None:
     """200 000 samples of 20 robots (an hour at 55 Hz) streamed in chunks: finish()
     (plots and summary) peaks at a small part of what loading the trajectory would

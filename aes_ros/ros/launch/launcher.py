@@ -82,6 +82,7 @@ from aes_ros.ros.launch.reaper import start_reaper
 from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.ros.programs import LaunchError
+from aes_ros.ros.qos import OUTPUT_DEPTH
 from aes_ros.ros.spin import stop_signals
 from aes_ros.run_summary import progress
 from aes_ros.run_writer import RunWriter
@@ -369,6 +370,14 @@ class Launcher:
                 next_report += self.config.progress_every
 
         mon.run_until(t_end, self.config.stall_timeout, (self._supervise, report), self._stopping)
+        gap = self.writer.end_gap(t_end) if self.writer is not None else 0.0
+        if gap > 0 and not self._stopping() and self.failure is None:
+            # the samples in between were gone from the bridge's history when the
+            # launcher (held up) asked for them again, and the next one was past the end
+            self.failure = (
+                f"the outputs end {gap:.2f} s of sim time before the run's end: the "
+                f"launcher fell more than {OUTPUT_DEPTH} pose messages behind"
+            )
 
     def stop(self) -> list[str]:
         """Stop every process (idempotent); returns the names of SIGKILLed ones."""
