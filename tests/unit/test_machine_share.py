@@ -127,3 +127,44 @@ def test_the_lock_directory_is_this_users_alone(parallel_run: None) -> None:
     info = os.lstat(lock_dir())
     assert stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid()
     assert stat.S_IMODE(info.st_mode) == 0o700
+
+
+def test_the_alone_tests_run_on_one_worker_in_one_row(tmp_path: Path) -> None:
+    """Under the README's ``pytest -n 2 --dist loadgroup`` the tests marked ``alone`` are one
+    worker's, one after the other: a pytest that stops grouping them (9.2 with xdist 3.8)
+    spreads them over both workers, each waiting for the other's."""
+    tests = tmp_path / "tests"
+    tests.mkdir()
+    (tests / "conftest.py").write_text((Path(__file__).parents[1] / "conftest.py").read_text())
+    (tmp_path / "pyproject.toml").write_text(
+        '[tool.pytest.ini_options]\nmarkers = ["alone: runs with no other test beside it"]\n'
+    )
+    log = tmp_path / "log"
+    for module in "abc":
+        (tests / f"test_{module}.py").write_text(
+            "import os, time, pytest\n"
+            "def ran(name, alone=''):\n"
+            f"    with open({str(log)!r}, 'a') as f:\n"
+            "        f.write(f\"{os.environ['PYTEST_XDIST_WORKER']} {name} {alone}\\n\")\n"
+            "    time.sleep(0.2)\n"
+            f"def test_{module}1(): ran('{module}1')\n"
+            "@pytest.mark.alone\n"
+            f"def test_{module}2(): ran('{module}2', 'alone')\n"
+            f"def test_{module}3(): ran('{module}3')\n"
+            "@pytest.mark.alone\n"
+            f"def test_{module}4(): ran('{module}4', 'alone')\n"
+        )
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
+    env["PYTHONPATH"] = str(Path(__file__).parents[1])
+    run = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-n", "2", "--dist", "loadgroup",
+         "-p", "no:cacheprovider", str(tests)],
+        cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stdout + run.stderr
+    lines = [line.split() for line in log.read_text().splitlines()]
+    alone = [worker for worker, *rest in lines if rest[1:] == ["alone"]]
+    assert len(alone) == 6 and len(set(alone)) == 1, lines  # one worker's
+    own = [rest[1:] == ["alone"] for worker, *rest in lines if worker == alone[0]]
+    first = own.index(True)
+    assert own[first : first + 6] == [True] * 6, lines  # in one row
