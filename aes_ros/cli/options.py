@@ -22,7 +22,6 @@ from typing import Any
 
 from aes_ros import scenario
 from aes_ros.cli.deprecated import add_deprecated
-from aes_ros.optim import tcacs
 from aes_ros.params import ParameterError
 
 
@@ -165,6 +164,8 @@ seed_type = number_type(int, 0, MAX_SEED)
 def check_tcacs_options(labels: Mapping[str, str], **options: Any) -> None:
     """TCACS's own option check (:func:`aes_ros.optim.tcacs.check_options`), its
     message naming the option as the command spells it (``labels``)."""
+    from aes_ros.optim import tcacs  # here: it loads scipy.optimize, 0.5 s of every command
+
     try:
         tcacs.check_options(**options, labels=dict(labels))
     except ValueError as exc:

@@ -67,6 +67,26 @@ def test_the_reaper_kills_only_the_processes_it_was_given(tmp_path: Path) -> Non
             proc.wait()
 
 
+def test_the_reaper_starts_alone_and_without_a_warning() -> None:
+    """Every launch starts the reaper (``python -m aes_ros.ros.launch.reaper``) beside its
+    nodes: it loads neither the launcher nor rclpy, and runpy has no module of the
+    package loaded twice to warn about in its log."""
+    probe = (
+        "import runpy, sys, warnings\n"
+        "warnings.simplefilter('error')\n"
+        "sys.argv = ['reaper', '--help']\n"
+        "try:\n"
+        "    runpy.run_module('aes_ros.ros.launch.reaper', run_name='__main__')\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(*sorted(m for m in ('rclpy', 'numba', 'aes_ros.ros.launch.launcher')"
+        " if m in sys.modules))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[-1] == ""
+
+
 #: A launcher stand-in: starts a child through a ProcessSet from a thread (the launcher
 #: runs threads), says its pid, and waits to be killed.
 PARENT = """
