@@ -7,22 +7,20 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import rclpy
+from rclpy.parameter import Parameter
 
+from aes_ros import scenario
+from aes_ros.params import ParameterError
+from aes_ros.ros.launch import LaunchConfig
+from aes_ros.ros.launch.commands import tracking_commands
 from sim_bridge import camera_effects as fx
+from sim_bridge.camera_node import ArenaCameraNode
 
 
 def test_the_camera_node_takes_the_preset_and_an_override(ros_env, tmp_path) -> None:
     """``preset:=realistic`` sets the effects' defaults; a parameter given overrides one;
     frames differ from the plain render; a preset it does not know is named."""
-    import rclpy
-    from rclpy.parameter import Parameter
-
-    from aes_ros import scenario
-    from aes_ros.params import ParameterError
-    from aes_ros.ros.launch import LaunchConfig
-    from aes_ros.ros.launch.commands import tracking_commands
-    from sim_bridge.camera_node import ArenaCameraNode
-
     config = LaunchConfig(scenario.load("combined"), tracking="camera", camera_preset="realistic")
     camera_cmd = tracking_commands(config, tmp_path / "arena.yaml")[0]
     assert "preset:=realistic" in camera_cmd.argv

@@ -133,9 +133,10 @@ def test_the_alone_tests_run_on_one_worker_in_one_row(tmp_path: Path) -> None:
     """Under the README's ``pytest -n 2 --dist loadgroup`` the tests marked ``alone`` are one
     worker's, one after the other: a pytest that stops grouping them (9.2 with xdist 3.8)
     spreads them over both workers, each waiting for the other's."""
+    ours = Path(__file__).parents[1]  # this project's tests/: its conftest and helpers
     tests = tmp_path / "tests"
     tests.mkdir()
-    (tests / "conftest.py").write_text((Path(__file__).parents[1] / "conftest.py").read_text())
+    (tests / "conftest.py").write_text((ours / "conftest.py").read_text())
     (tmp_path / "pyproject.toml").write_text(
         '[tool.pytest.ini_options]\nmarkers = ["alone: runs with no other test beside it"]\n'
     )
@@ -155,7 +156,7 @@ def test_the_alone_tests_run_on_one_worker_in_one_row(tmp_path: Path) -> None:
             f"def test_{module}4(): ran('{module}4', 'alone')\n"
         )
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}
-    env["PYTHONPATH"] = str(Path(__file__).parents[1])
+    env["PYTHONPATH"] = str(ours)
     run = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-n", "2", "--dist", "loadgroup",
          "-p", "no:cacheprovider", str(tests)],
