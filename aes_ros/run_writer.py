@@ -14,7 +14,8 @@ files and draws the plots and the summary from the disk
 (:func:`aes_ros.report.finish_run_outputs`, bounded whatever the run's length); given
 the scenario's file it does that in a child process (``python -m aes_ros.report``),
 so that a long-lived caller (the launcher) never loads matplotlib and its memory
-stays what it was during the run (``bench/bench_soak.py`` checks it).
+stays what it was during the run (``bench/bench_soak.py`` checks it); the launcher
+starts that child (:meth:`RunWriter.start_drawing`) before it stops its processes.
 After a crash (even ``kill -9`` of the launcher) ``metrics.csv`` and
 ``trajectory.h5`` read back up to the last flush (:func:`aes_ros.trajectory.load_trajectory`),
 and ``aes-swarm report DIR`` (:func:`aes_ros.report.rebuild_run_outputs`) writes the
@@ -82,6 +83,7 @@ class RunWriter:
         self._last_flush = clock()
         self._metrics_fd: int | None = None
         self._trajectory: TrajectoryWriter | None = None  # created by the first flush
+        self._drawing: subprocess.Popen[str] | None = None  # start_drawing's child
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             (self.out_dir / TRAJECTORY_FILE).unlink(missing_ok=True)
@@ -158,28 +160,44 @@ class RunWriter:
         draw the plots from the disk, in a child process given ``scenario_file`` (this
         run's scenario as a file). Returns the run's summary line ("" if nothing
         could be written, or the writer failed: then what is on disk stays for
-        ``aes-swarm report``)."""
-        self.flush()
-        self._close()
-        if self.error is not None or self.written < 2:
-            return ""
-        if scenario_file is not None:
-            return self._finish_in_child(Path(scenario_file))
-        try:
-            return finish_run_outputs(self.out_dir, self.scenario, self.label)
-        except (OSError, RuntimeError) as exc:
-            self._fail(exc)
-            return ""
-
-    def _finish_in_child(self, scenario_file: Path) -> str:
-        command = [sys.executable, "-m", "aes_ros.report", str(self.out_dir),
-                   str(scenario_file), self.label]  # fmt: skip
-        done = subprocess.run(command, capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            why = (done.stderr.strip().splitlines() or [f"exit code {done.returncode}"])[-1]
+        ``aes-swarm report``). After :meth:`start_drawing`, waits for its child."""
+        if self._drawing is None:
+            if scenario_file is not None:
+                self.start_drawing(Path(scenario_file))
+                return self.finish()
+            self.flush()
+            self._close()
+            if self.error is not None or self.written < 2:
+                return ""
+            try:
+                return finish_run_outputs(self.out_dir, self.scenario, self.label)
+            except (OSError, RuntimeError) as exc:
+                self._fail(exc)
+                return ""
+        out, err = self._drawing.communicate()
+        code, self._drawing = self._drawing.returncode, None
+        if code != 0:
+            why = (err.strip().splitlines() or [f"exit code {code}"])[-1]
             self.error = f"cannot draw the outputs in {self.out_dir}: {why}"
             return ""
-        return done.stdout.strip().splitlines()[-1] if done.stdout.strip() else ""
+        return out.strip().splitlines()[-1] if out.strip() else ""
+
+    def start_drawing(self, scenario_file: Path) -> None:
+        """The first half of :meth:`finish` with ``scenario_file``: flush, close the files
+        and start the child that draws the plots (``python -m aes_ros.report``), so that
+        the caller can stop its processes meanwhile; :meth:`finish` then waits for it.
+        The child is in a session of its own: a Ctrl-C at the terminal, meant for the
+        caller, does not cut the drawing short."""
+        self.flush()
+        self._close()
+        if self.error is not None or self.written < 2 or self._drawing is not None:
+            return
+        command = [sys.executable, "-m", "aes_ros.report", str(self.out_dir),
+                   str(scenario_file), self.label]  # fmt: skip
+        self._drawing = subprocess.Popen(
+            command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            start_new_session=True,
+        )  # fmt: skip
 
     def _fail(self, exc: Exception) -> None:
         self.error = f"cannot write the outputs to {self.out_dir}: {error_reason(exc)}"

@@ -318,3 +318,18 @@ def test_the_plots_drawn_in_a_child_process_are_the_same(tmp_path: Path, run) ->
     broken = stream(tmp_path / "broken", sc, result, Clock())
     assert broken.finish(tmp_path / "missing.yaml") == ""
     assert "cannot draw the outputs" in broken.error
+
+
+def test_drawing_started_before_a_stop_gives_the_same_outputs(tmp_path: Path, run) -> None:
+    """The launcher starts the drawing child (start_drawing) before it stops its processes
+    and collects it after (finish): the files are closed at the start, and the summary
+    and plots are those of finish(scenario_file) at once."""
+    sc, result = run
+    scenario_file = write_scenario(sc, tmp_path / "scenario.yaml")
+    expected = stream(tmp_path / "at_once", sc, result, Clock()).finish(scenario_file)
+    early = stream(tmp_path / "early", sc, result, Clock())
+    early.start_drawing(scenario_file)
+    assert is_sealed(tmp_path / "early" / "trajectory.h5")  # closed: any HDF5 reader opens it
+    assert early.finish(scenario_file) == expected != ""
+    for name in ("snapshots.png", "metrics.png"):
+        assert (tmp_path / "early" / name).stat().st_size > 0

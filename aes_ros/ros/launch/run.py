@@ -69,6 +69,8 @@ def launch(config: LaunchConfig, say: Callable[[str], None] = print) -> LaunchRe
                 say(f"launch: the run cannot go on: {exc}")
             ok = True
         finally:
+            if launcher.writer is not None:  # the plots are drawn while the processes stop
+                launcher.writer.start_drawing(launcher.work_dir / "scenario.yaml")
             killed = launcher.stop()
             if killed:
                 say(f"launch: had to SIGKILL {', '.join(killed)}")
