@@ -161,19 +161,23 @@ class RunWriter:
         run's scenario as a file). Returns the run's summary line ("" if nothing
         could be written, or the writer failed: then what is on disk stays for
         ``aes-swarm report``). After :meth:`start_drawing`, waits for its child."""
-        if self._drawing is None:
-            if scenario_file is not None:
-                self.start_drawing(Path(scenario_file))
-                return self.finish()
-            self.flush()
-            self._close()
-            if self.error is not None or self.written < 2:
-                return ""
-            try:
-                return finish_run_outputs(self.out_dir, self.scenario, self.label)
-            except (OSError, RuntimeError) as exc:
-                self._fail(exc)
-                return ""
+        if scenario_file is not None:
+            self.start_drawing(Path(scenario_file))  # nothing if it was started before
+        if self._drawing is not None:
+            return self._drawn()
+        self.flush()
+        self._close()
+        if self.error is not None or self.written < 2:
+            return ""
+        try:
+            return finish_run_outputs(self.out_dir, self.scenario, self.label)
+        except (OSError, RuntimeError) as exc:
+            self._fail(exc)
+            return ""
+
+    def _drawn(self) -> str:
+        """The summary line of :meth:`start_drawing`'s child, once it has exited."""
+        assert self._drawing is not None
         out, err = self._drawing.communicate()
         code, self._drawing = self._drawing.returncode, None
         if code != 0:
