@@ -299,6 +299,12 @@ def test_lockstep_goes_on_without_a_dead_robot_host_and_counts_recording_losses(
     assert wait_for(lambda: said_by_all("answered again: back in the barrier"), 20)
     kill(ros_env, "aes_ros.ros.recorder")
     assert wait_for(lambda: (tmp_path / "run_1.mcap").exists(), 15.0)
+    # At full speed 3 s of sim time can pass before the new recorder's subscriptions
+    # match (seen in CI: an empty run_1.mcap, so no outage to count): wait until it
+    # receives the poses, which the launcher reports as the recorder's recovery.
+    assert wait_for(lambda: "recorder recovered" in launcher_log.read_text(), 30.0), (
+        launcher_log.read_text()[-3000:]
+    )
     t_back = probe.now
     probe.wait(lambda: probe.now > t_back + 3.0, 30.0, "stepping after the recorder")
     os.killpg(launcher.pid, signal.SIGINT)
