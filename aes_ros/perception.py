@@ -10,7 +10,7 @@ axis at each camera update), ``perception_delay`` τ [s] (the state round(τ/Δt
 ago), ``perception_rate`` f_cam [Hz] (refreshed every round(1/(f_cam·Δt)) steps, held
 between; 0 = every step) and ``perception_miss`` (each robot missed per refresh, keeping
 its last perceived pose; nobody at step 0). Run ``seed`` draws them from two generators
-of its own, never the run's, through one compiled :func:`aes_ros.kernel.camera_draws`
+of its own, never the run's, through one compiled :func:`aes_ros.xoshiro.camera_draws`
 shared by the kernel, :func:`draw_camera` and :class:`PerceptionStream`, so all three
 see identical numbers (docs/model.md#perception-error).
 """
@@ -114,7 +114,7 @@ def draw_camera(
     z, u = np.zeros((n_refreshes * n_robots, 2)), np.zeros(n_refreshes * n_robots)
     # numba only here: the bridge and the launcher import this module for the settings
     # and would otherwise load numba (0.15-0.3 s) at every start, a restart's included
-    from aes_ros.kernel import camera_draws
+    from aes_ros.xoshiro import camera_draws
 
     camera_draws(state, settings.sigma > 0.0, settings.miss > 0.0, z, u)
     noise[...], uniforms[...] = z.reshape(noise.shape), u.reshape(uniforms.shape)
