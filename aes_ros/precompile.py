@@ -16,7 +16,7 @@ import numpy as np
 
 from aes_ros import scenario, simulator
 from aes_ros.contacts import TOUCH_TOLERANCE, contact_geometry, measure_contacts, resolve_contacts
-from aes_ros.ir import ir_ranges
+from aes_ros.ir_readings import ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 
 #: Small runs that go through every path of the kernel: bodies with walls and obstacles,

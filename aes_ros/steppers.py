@@ -18,7 +18,7 @@ import numpy as np
 from aes_ros import metrics
 from aes_ros.avoidance import AVOIDANCE_RANGE, N_IR, avoidance_force, ir_period_steps
 from aes_ros.contacts import ITERATIONS, resolve_contacts
-from aes_ros.ir import ir_ranges
+from aes_ros.ir_readings import ir_ranges
 from aes_ros.kernel import PARAM_ORDER, advance, spring_list
 from aes_ros.model import (
     Gains,

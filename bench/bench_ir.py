@@ -4,7 +4,7 @@ Measured side by side in one run, for the 100-robot combined scenario at its ini
 state (robots 0.2 m apart, so rays meet neighbours):
 
 - ``kernel``: the numba rays (:func:`aes_ros.ir.ray_distances`, what the offline kernel
-  calls) and :func:`aes_ros.ir.ir_ranges` (numpy entry point: rays, noise and response
+  calls) and :func:`aes_ros.ir_readings.ir_ranges` (numpy entry point: rays, noise and response
   curve) against one robot-step of the offline simulator (batch 1, the same scenario);
 - ``pybullet``: :func:`sim_bridge.ir_sensors.cast_ir` (one ``rayTestBatch``) against one
   control step of :class:`sim_bridge.world.World`, kinematic and dynamic;
@@ -32,7 +32,8 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros import scenario, simulator
-from aes_ros.ir import IR_ANGLES, IrResponse, ir_ranges, ray_distances
+from aes_ros.ir import IR_ANGLES, ray_distances
+from aes_ros.ir_readings import IrResponse, ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 from sim_bridge.ir_sensors import cast_ir

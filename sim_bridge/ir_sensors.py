@@ -3,7 +3,7 @@
 :func:`cast_ir` casts every robot's five rays (:data:`aes_ros.ir.IR_ANGLES`) in one
 ``pybullet.rayTestBatch`` call (up to 1638 robots) against whatever the world's bodies are
 (robots, and walls or obstacles the world holds); :class:`IrSensors` turns them into
-readings with the response of :func:`aes_ros.ir.ir_response` and publishes them on
+readings with the response of :func:`aes_ros.ir_readings.ir_response` and publishes them on
 ``/mona_<i>/ir_<k>`` (sensor_msgs/Range, frame ``mona_<i>/ir_<k>``, stamped with sim time),
 the topics and type of the Mona driver, at ``ir_rate`` per second of sim time.
 docs/model.md, "IR proximity sensors".
@@ -24,7 +24,8 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import Range
 
 from aes_ros.frames import yaw_from_quaternion
-from aes_ros.ir import IR_ANGLES, ir_response
+from aes_ros.ir import IR_ANGLES
+from aes_ros.ir_readings import ir_response
 from aes_ros.mona.sensors import IR_FIELD_OF_VIEW, IrModel
 from aes_ros.params import ParameterError
 from aes_ros.ros import interface as names

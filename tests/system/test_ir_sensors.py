@@ -12,7 +12,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Range
 
 import aes_ros
-from aes_ros.ir import IrResponse, ir_ranges
+from aes_ros.ir_readings import IrResponse, ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IR_FIELD_OF_VIEW, IrModel
 from aes_ros.params import PARAMS

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from numba import njit
 
-from aes_ros.ir import IR_ANGLES, IrResponse, cast_rays, ir_ranges, mounting, ray_distances
+from aes_ros.ir import IR_ANGLES, cast_rays, mounting, ray_distances
+from aes_ros.ir_readings import IrResponse, ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 

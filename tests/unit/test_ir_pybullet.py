@@ -11,7 +11,8 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.ir import IR_ANGLES, ir_ranges
+from aes_ros.ir import IR_ANGLES
+from aes_ros.ir_readings import ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.mona.sensors import IrModel
 from sim_bridge import ir_sensors
