@@ -60,50 +60,20 @@ RESUME_REPUBLISH = 0.2
 class SimBridgeNode(Node):
     """A pybullet world of N Mona robots behind ROS topics.
 
-    Parameters (ROS)
-    ----------------
-    scenario : str, default "combined"
-        Setup name (linear | rotation | combined) or scenario YAML path; gives the
-        formation and the robot limits. Read-only.
-    num_robots : int, default 0
-        0 = the scenario's formation; n > 0 = an n-robot grid
-        (``Scenario.with_robots``). Read-only.
-    seed : int, default 0
-        Initial state = ``Scenario.initial_state(seed)``, the offline simulator's
-        start with that seed. Read-only.
-    resume_from : str, default ""
-        A world state file (:class:`aes_ros.world_state.WorldState`: sim time,
-        positions, headings) to start from instead: a restarted bridge carries on
-        where the last one stopped, its clock too. It then publishes that state
-        until every robot has answered it (at most ``lockstep_timeout`` wall
-        seconds) before it steps on, so that no robot stands still while it
-        finds the new bridge. Read-only.
-    mode : str, default "kinematic"
-        ``kinematic`` (body follows cmd_vel exactly) or ``dynamic`` (wheel motors,
-        friction, collisions). Read-only.
-    physics_rate : float [Hz], default 240.0
-        pybullet rate in dynamic mode (rounded to whole steps per control period).
-    publish_rate : float [Hz], default 20.0
-        Control rate: one world step and one /clock, /swarm/poses and odom message
-        per period of sim time. Read-only.
-    real_time_factor : float, default 1.0
-        Sim seconds per wall second; 0 = as fast as possible.
-    lockstep : bool, default false
-        Before each step wait for a new cmd_vel from every robot (deterministic).
-    lockstep_timeout : float [s of wall time], default 2.0
-        In lockstep, a robot silent for longer leaves the barrier (its body is
-        stopped, logged) until it answers again, so a dead robot does not stall
-        the swarm (:mod:`sim_bridge.lockstep`).
-    wait_for_recorder : bool, default false
-        In lockstep, also wait before each step until the recorder has written the
-        state published last (``/recorder/progress``): a lossless recording at any
-        load.
-    cmd_timeout : float [s of sim time], default 0.5
-        A robot whose last command is older stops.
-    clip : bool, default true
-        Clip commands to the scenario's max_linear_speed / max_angular_speed.
-    gui : bool, default false
-        Open the pybullet GUI. Read-only.
+    Parameters (ROS): ``scenario`` and ``num_robots`` as every node declares them
+    (:func:`aes_ros.ros.parameters.declare_scenario`), the rest in
+    :func:`sim_bridge.parameters.declare_bridge_parameters`, each once with its default,
+    range and description (listed in docs/interface.md). What some of them do beyond
+    their one line: the initial state is ``Scenario.initial_state(seed)``, the offline
+    simulator's start with that seed; with ``resume_from`` the bridge carries on from a
+    world state file (:class:`aes_ros.world_state.WorldState`), its clock too, and
+    publishes that state until every robot has answered it (at most
+    ``lockstep_timeout`` wall seconds) before it steps on, so that no robot stands still
+    while it finds the new bridge; in ``lockstep`` a robot silent for longer than
+    ``lockstep_timeout`` leaves the barrier (its body stopped, logged) until it answers
+    again, so a dead robot does not stall the swarm (:mod:`sim_bridge.lockstep`), and
+    with ``wait_for_recorder`` each step also waits until the recorder has written the
+    state published last: a lossless recording at any load.
 
     The scenario's ``contacts``, ``walls`` and ``obstacles`` go to the world
     (:class:`sim_bridge.world.World`).
