@@ -246,6 +246,11 @@ def test_runtime_parameters_and_dynamic_mode(spawn, probe):
         bridge.send(0, 0.0, 1.0)
         bridge.send(1, 0.1, 0.0)
         time.sleep(0.05)
+    # Robot 0 stopped before the look: with cmd_timeout 10 s its turn would go on until
+    # the sample comes in, and on a busy machine (seen in CI) past the angle whose sine
+    # the check reads (the loop's 2 s of sim time at 1 rad/s are 2 rad; the limit 2.84).
+    bridge.send(0, 0.0, 0.0)
+    bridge.send(1, 0.1, 0.0)
     time.sleep(0.2)
     _, pos, head = probe.sample()
     heading = np.array([np.cos(start_head[1]), np.sin(start_head[1])])
