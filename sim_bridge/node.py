@@ -129,6 +129,9 @@ class SimBridgeNode(Node):
         except (ValueError, RuntimeError) as exc:  # a world that cannot be built
             raise ParameterError(str(exc)) from None
         self.paused = False
+        #: Sim time [s] at which the world holds (0: never); held: paused by it.
+        self.pause_at = get("pause_at").value
+        self.held = False
         #: Wall time since when a resumed bridge waits for the swarm (None: not waiting).
         self.resuming_since = time.monotonic() if get("resume_from").value else None
         # Members 0..n-1 are the robots; member n the recorder, with wait_for_recorder.
@@ -290,6 +293,9 @@ class SimBridgeNode(Node):
         """Timer: one control step of the world, then publish the new state."""
         if self.paused or not self._resumed():
             return
+        if self.pause_at > 0.0 and self.world.time >= self.pause_at:
+            self._hold()
+            return
         if self.lockstep and not self.barrier.complete:
             self._drop_silent()
         if self.lockstep and not self.barrier.complete:
@@ -302,6 +308,12 @@ class SimBridgeNode(Node):
         self.world.step()
         self.stats.bodies(*self.world.last_contacts)
         self.publish_state()
+
+    def _hold(self) -> None:
+        """Pause at ``pause_at``: the state published last is the one at that time."""
+        self.paused = self.held = True
+        self.step_timer.cancel()
+        self.get_logger().info(f"paused at t={self.world.time:g} s (pause_at)")
 
     def _resumed(self) -> bool:
         """A resumed bridge steps on once every robot answered its state, or after
@@ -360,6 +372,7 @@ class SimBridgeNode(Node):
     def on_pause(self, request: SetBool.Request, response: SetBool.Response):
         """``data`` true pauses the world (and the clock), false resumes it."""
         self.paused = bool(request.data)
+        self.held = False
         if self.paused:
             self.step_timer.cancel()  # no busy timer while paused at real_time_factor 0
         else:
@@ -381,7 +394,7 @@ class SimBridgeNode(Node):
 
     def on_parameters_set(self, params: list[Parameter]) -> None:
         """Apply runtime changes of real_time_factor, lockstep, lockstep_timeout,
-        cmd_timeout and clip."""
+        cmd_timeout, clip and pause_at."""
         for p in params:
             if p.name == "real_time_factor":
                 self.real_time_factor = p.value
@@ -396,6 +409,11 @@ class SimBridgeNode(Node):
                 self.world.cmd_timeout = p.value
             elif p.name == "clip":
                 self.world.limits = self.limits if p.value else None
+            elif p.name == "pause_at":
+                self.pause_at = p.value
+                if self.held and (p.value == 0.0 or p.value > self.world.time):
+                    self.paused = self.held = False
+                    self._restart_stepping()
 
     # --- output ------------------------------------------------------------------
     def publish_state(self) -> None:

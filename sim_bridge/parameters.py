@@ -88,6 +88,17 @@ def declare_bridge_parameters(node: Node, ir_rate: float = 20.0) -> None:
         ),
     )
     node.declare_parameter(
+        "pause_at",
+        0.0,
+        rp.float_descriptor(
+            "the world pauses (its clock too) once its sim time reaches this; set it later "
+            "or to 0 to go on; 0 = never (a launch sets it to the run's end)",
+            "s",
+            0.0,
+            1e9,
+        ),
+    )
+    node.declare_parameter(
         "cmd_timeout",
         0.5,
         rp.float_descriptor("a robot whose last cmd_vel is older stops (sim time)", "s", 0.0, 1e6),

@@ -41,7 +41,8 @@ def test_a_perceived_launch_moves_like_the_offline_model_with_the_same_perceptio
 
     - the swarm's true trajectory (the launch's outputs, from /sim/ground_truth/poses)
       reaches the run's end although the launcher is stopped for 3 s (the bridge goes on
-      at full speed, well past the end: the writer keeps what the launcher missed), and
+      at full speed to the end, where it waits: its writer keeps what the launcher
+      missed), and
       equals the offline simulator's run with the same perception and seed within 1 mm
       at every step: the bridge draws what the simulator draws;
     - what the robots were shown (/swarm/poses in the bag) is the true state 2 steps
@@ -57,8 +58,10 @@ def test_a_perceived_launch_moves_like_the_offline_model_with_the_same_perceptio
         "--record", str(bag), "--out", str(out), name="launch",
     )  # fmt: skip
     # The launcher held up for 3 s as the run starts (as a loaded machine can do to it):
-    # the bridge runs on at full speed past the run's end, and the launcher's outputs
-    # must still reach it (with a writer history of 50 they ended at 0.35 s)
+    # the bridge runs on at full speed to the run's end (its pause_at), and the
+    # launcher's outputs must still reach it (with a writer history of 50 they ended at
+    # 0.35 s; with the bridge running on past the end, a loaded machine's launcher fell
+    # 1000 messages behind and they ended at 0.2 s)
     log = spawn.log(proc)
     assert wait_for(lambda: "robots moving" in log.read_text(), 120), log.read_text()
     os.kill(proc.pid, signal.SIGSTOP)

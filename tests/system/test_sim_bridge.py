@@ -260,6 +260,21 @@ def test_runtime_parameters_and_dynamic_mode(spawn, probe):
     assert bridge.odom[-1].twist.twist.linear.x == pytest.approx(0.1, abs=0.02)
 
 
+def test_pause_at_holds_the_world_there_until_it_is_set_later(spawn, probe):
+    """A launch sets ``pause_at`` to the run's end: the bridge waits there, its clock
+    too, rather than run on past it, and goes on once ``pause_at`` is moved on."""
+    _, bridge = start_bridge(spawn, probe, 2, "num_robots:=2", "pause_at:=1.0")
+    probe.wait(lambda: bridge.clock and bridge.clock[-1] >= 1.0, 20.0, "/clock at 1 s")
+    time.sleep(1.0)  # real time: running on, the clock would be at 2 s
+    assert bridge.clock[-1] == pytest.approx(1.0)
+    ok, reason = set_bridge_parameter(probe, "pause_at", -1.0)  # out of range: refused
+    assert not ok and "pause_at" in reason
+    assert set_bridge_parameter(probe, "pause_at", 1.5)[0]
+    probe.wait(lambda: bridge.clock[-1] >= 1.5, 20.0, "/clock at 1.5 s")
+    time.sleep(0.5)
+    assert bridge.clock[-1] == pytest.approx(1.5)
+
+
 def colliding_scenario(path) -> str:
     """A 2 x 2 combined sheet whose bodies overlap from the start (spacing 0.07 m < 2r),
     driven into a wall, with a post beside its path and contacts on; written to ``path``."""

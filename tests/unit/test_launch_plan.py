@@ -121,3 +121,21 @@ def test_camera_frames_are_recorded_only_when_asked_and_by_a_restarted_recorder_
     restart = RestartCommands({}, None, tmp_path / "w.npz", tmp_path / "bag", 4, images_rate=2.5)
     again = restart("recorder")
     assert again[again.index("--images") + 1] == "2.5"
+
+
+def test_a_restarted_bridge_waits_at_the_run_end_as_the_first_one_did(tmp_path) -> None:
+    """Once the launcher has set the bridge's pause_at (the run's end), a bridge it
+    restarts is given the same, or it would run on past the end at full speed."""
+    from types import SimpleNamespace
+
+    from aes_ros.ros.launch.recovery import RestartCommands
+
+    sc = scenario.load("linear").with_robots(4)
+    files = (tmp_path / "s.yaml", tmp_path / "r.yaml", tmp_path / "arena.yaml")
+    order = start_order(LaunchConfig(sc, layout="single"), *files)
+    monitor = SimpleNamespace(times=[], desired=None, enabled=None)
+    restart = RestartCommands(order.by_name, monitor, tmp_path / "w.npz", None, 4)
+    assert not any(a.startswith("pause_at:=") for a in restart("sim_bridge"))
+    restart.pause_at = 10.025
+    argv = restart("sim_bridge")
+    assert argv[argv.index("pause_at:=10.025") - 1] == "-p"

@@ -117,6 +117,8 @@ class Launcher:
         self.monitor: Monitor | None = None
         self.events: EventLog | None = None
         self.supervision: Supervision | None = None
+        self.restart: RestartCommands | None = None
+        self._has_bridge = False
         self.writer: RunWriter | None = None
         self.stop_reason: str | None = None
         #: Why the run could not go on, or why its outputs are incomplete.
@@ -166,6 +168,7 @@ class Launcher:
         )
         layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
         order = start_order(cfg, scenario_file, robots_file, layout_file, self.discovery)
+        self._has_bridge = order.bridge is not None
         if cfg.firmware == "sil":
             order = with_firmware(order, n)
         self._specs = order.by_name
@@ -229,11 +232,11 @@ class Launcher:
             if (url := dashboard.line_after(names.DASHBOARD_READY)) is not None:
                 self.say(f"launch: dashboard at {dashboard_token.with_token(url, token)}")
         state = self.procs.log_dir / "world_state.npz"
-        restart = RestartCommands(
+        self.restart = RestartCommands(
             self._specs, self.monitor, state, cfg.record, n, images_rate=cfg.record_images
         )
         self.supervision = Supervision(
-            self.procs, self.events, cfg.on_failure, restart, self.monitor.sim_time,
+            self.procs, self.events, cfg.on_failure, self.restart, self.monitor.sim_time,
             # a server that died comes back once its clients have forgotten it
             backoff_for={dds.SERVER_PROCESS: Backoff(first=dds.SERVER_RESTART_DELAY)},
         )  # fmt: skip
@@ -337,12 +340,29 @@ class Launcher:
         self.t_go = mon.sample(mon.last_unmoved)[0] if mon.count else 0.0
         if moved_at is not None:
             self.go_index = mon.last_unmoved
+            self._pause_bridge_at_end()
             self._begin_outputs()
             self.say(
                 f"launch: all {mon.n} robots moving at sim time "
                 f"{mon.sample(moved_at)[0]:.2f} s (wall {self.wall_time:.1f} s)"
             )
         return self.t_go
+
+    def _pause_bridge_at_end(self) -> None:
+        """Have the bridge wait half a step past the run's end (its ``pause_at``, a
+        restarted bridge's too): at full speed it would otherwise run on while a launcher
+        held up by a loaded machine falls so far behind that the samples it missed are
+        gone from the bridge's history, and the outputs end early (seen in a test)."""
+        duration = self.config.run_time
+        if not self._has_bridge or duration <= 0 or self.t_go is None:
+            return
+        at = self.t_go + duration + 0.5 * self.config.scenario.dt
+        if self.restart is not None:
+            self.restart.pause_at = at
+        try:
+            self.monitor.pause_bridge_at(at, self.config.start_timeout)
+        except LaunchError as exc:
+            self.say(f"launch: {exc}; the bridge runs on past the run's end")
 
     def _begin_outputs(self) -> None:
         """From the run's start on, samples go to disk as they come."""

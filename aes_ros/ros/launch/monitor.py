@@ -22,6 +22,8 @@ from typing import Any
 import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseArray, TwistStamped
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
 from rclpy.experimental import EventsExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -346,6 +348,15 @@ class Monitor:
     def pause_bridge(self, paused: bool, timeout: float) -> None:
         """Call the bridge's ``/sim/pause``."""
         self.call(SetBool, names.SIM_PAUSE, SetBool.Request(data=paused), timeout)
+
+    def pause_bridge_at(self, t: float, timeout: float) -> None:
+        """Set the bridge's ``pause_at`` to sim time ``t`` [s]; LaunchError if it refuses."""
+        value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(t))
+        request = SetParameters.Request(parameters=[Parameter(name="pause_at", value=value)])
+        service = f"/{names.SIM_BRIDGE_NODE}/set_parameters"
+        result = self.call(SetParameters, service, request, timeout).results[0]
+        if not result.successful:
+            raise LaunchError(f"the bridge refused pause_at = {t:g} s: {result.reason}")
 
     def bridge_stats(self, timeout: float = 30.0) -> dict[str, Any]:
         """The bridge's ``/sim/stats`` (control-loop figures since the last call)."""

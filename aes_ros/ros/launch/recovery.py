@@ -71,7 +71,8 @@ class RestartCommands:
     """The command line that restarts a launch's process ``name`` (call the object).
 
     - the bridge: from the last world state the monitor sampled (``resume_from``,
-      written to ``state_file``), so the swarm carries on where it was;
+      written to ``state_file``), so the swarm carries on where it was, and waiting
+      at the run's end as the first did (``pause_at``);
     - the recorder: as it was first started (its ``--split``, ``--keep`` and
       ``--images`` too) into the next bag segment: one past the highest on disk,
       which a splitting recorder may have numbered (``run_1.mcap``, …), counting
@@ -93,6 +94,8 @@ class RestartCommands:
     num_robots: int
     segments: int = 0
     images_rate: float = 0.0
+    #: The bridge's ``pause_at`` [s of sim time] once the launcher has set it (0: none).
+    pause_at: float = 0.0
 
     def __call__(self, name: str) -> list[str]:
         if name == "recorder":
@@ -110,6 +113,8 @@ class RestartCommands:
         if name == names.SIM_BRIDGE_NODE and mon.times:
             state = WorldState(mon.times[-1], mon.positions[-1], mon.headings[-1])
             argv += ["-p", f"resume_from:={state.save(self.state_file)}"]
+        if name == names.SIM_BRIDGE_NODE and self.pause_at > 0.0:
+            argv += ["-p", f"pause_at:={ros_value(self.pause_at)}"]
         if name == names.SUPERVISOR_NODE and mon.desired is not None:
             twist = mon.desired.twist
             argv += [
