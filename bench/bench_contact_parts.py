@@ -14,7 +14,7 @@ kernel uses (:func:`aes_ros.kernel.advance`):
 
 Each part's time is that of a loop over the recorded states (their body centres computed
 from the recorded poses) with the part, less that of the same loop without it (best of
-``--repeat``). The script also times the whole step, with everything off and with
+``--trials``). The script also times the whole step, with everything off and with
 contacts and IR on (``simulate``, the noise included, as ``bench_sim.py`` does), and
 prints µs per step of N robots and the same in units of the off step; ``rest`` is the
 on step less the off step and the three parts: the centres and cosines computed in a
@@ -22,7 +22,7 @@ loop of their own after the step (inside it, they overlap the force's arithmetic
 avoidance term and the kernel's bookkeeping. Last line: ``RESULT off_us=… on=… list=…
 sweep=… rays=… rest=…`` (in units of the off step).
 
-Usage: ``python bench/bench_contact_parts.py [--runs 4] [--repeat 5]``
+Usage: ``python bench/bench_contact_parts.py [--runs 4] [--trials 5]``
 """
 
 from __future__ import annotations
@@ -96,9 +96,9 @@ def replay(
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--runs", type=int, default=4, help="runs recorded (default 4)")
-    parser.add_argument("--repeat", type=int, default=5, help="timings, best kept (default 5)")
+    parser.add_argument("--trials", type=int, default=5, help="timings, best kept (default 5)")
     args = parser.parse_args()
-    for name in ("runs", "repeat"):
+    for name in ("runs", "trials"):
         if getattr(args, name) < 1:
             parser.error(f"--{name}: need >= 1")
     numba.set_num_threads(1)
@@ -119,7 +119,7 @@ def main() -> None:
     for parts in range(4):
         replay(positions, headings, radius, axle_offset, near, skin, parts)
     best = {name: math.inf for name in ("off", "on", 0, 1, 2, 3)}
-    for _ in range(args.repeat):
+    for _ in range(args.trials):
         for name, sc in (("off", off), ("on", on)):
             start = time.perf_counter()
             simulator.simulate(sc, seeds, record=False)

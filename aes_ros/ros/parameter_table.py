@@ -80,6 +80,7 @@ NODE_PARAMETERS: dict[str, NodeParameters] = {
             "lockstep",
             "lockstep_timeout",
             "mode",
+            "pause_at",
             "physics_rate",
             "publish_rate",
             "real_time_factor",
