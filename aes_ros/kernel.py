@@ -159,6 +159,20 @@ def _centroid(points: np.ndarray) -> tuple[float, float]:
     return cx / n, cy / n
 
 
+@njit(inline="always")
+def list_cutoffs(radius: float, sensing: bool) -> tuple[float, float]:
+    """The cutoff ``near`` [m] and skin [m] of the kernel's candidate list of bodies of
+    ``radius`` [m] (:func:`aes_ros.pair_list.kept_pairs`); with the IR rays on
+    (``sensing``) the list holds every pair they can see."""
+    if sensing:
+        keep = max(CLOSE * radius, 2.0 * radius + AVOIDANCE_RANGE) + _LIST_MARGIN
+        skin = _IR_LIST_SKIN * radius
+    else:
+        keep = CLOSE * radius
+        skin = _CONTACT_LIST_SKIN * radius
+    return keep + 2.0 * skin, skin
+
+
 @njit(cache=True, fastmath=False, parallel=True)
 def advance(
     positions: np.ndarray,
@@ -281,13 +295,7 @@ def advance(
         ref_x = np.full(M2, np.inf)  # inf: no list yet, the first step makes one
         ref_y = np.full(M2, np.inf)
         listed = np.empty((0, 2), np.int64)
-        if sensing:  # the IR rays use the list too: it holds every pair they can see
-            keep = max(CLOSE * radius, 2.0 * radius + AVOIDANCE_RANGE) + _LIST_MARGIN
-            skin = _IR_LIST_SKIN * radius
-        else:
-            keep = CLOSE * radius
-            skin = _CONTACT_LIST_SKIN * radius
-        near = keep + 2.0 * skin
+        near, skin = list_cutoffs(radius, sensing)
         if perceive:
             _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
         for step in range(n_steps):

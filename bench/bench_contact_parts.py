@@ -35,10 +35,11 @@ import numba
 import numpy as np
 from numba import njit
 
-from aes_ros import kernel, scenario, simulator
+from aes_ros import scenario, simulator
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
-from aes_ros.contacts import CLOSE, NO_BOXES, NO_CIRCLES, NO_WALLS, _separate_listed
+from aes_ros.contacts import NO_BOXES, NO_CIRCLES, NO_WALLS, _separate_listed
 from aes_ros.ir import cast_rays_listed, mounting
+from aes_ros.kernel import list_cutoffs
 from aes_ros.pair_list import kept_pairs
 
 #: Bodies and the IR avoidance term as bench_sim.py's contacts+IR row has them.
@@ -111,8 +112,7 @@ def main() -> None:
     n_states = headings.shape[0] * headings.shape[1]
     body = simulator.BODY
     radius, axle_offset = body.body_radius, body.axle_offset
-    skin = kernel._IR_LIST_SKIN * radius
-    near = max(CLOSE * radius, 2.0 * radius + AVOIDANCE_RANGE) + kernel._LIST_MARGIN + 2 * skin
+    near, skin = list_cutoffs(radius, True)
 
     simulator.simulate(off, seeds, record=False)  # compile / load the caches
     simulator.simulate(on, seeds, record=False)

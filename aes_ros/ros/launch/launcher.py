@@ -118,7 +118,6 @@ class Launcher:
         self.events: EventLog | None = None
         self.supervision: Supervision | None = None
         self.restart: RestartCommands | None = None
-        self._has_bridge = False
         self.writer: RunWriter | None = None
         self.stop_reason: str | None = None
         #: Why the run could not go on, or why its outputs are incomplete.
@@ -168,7 +167,6 @@ class Launcher:
         )
         layout_file = write_layout(cfg, self.work_dir / "arena.yaml")
         order = start_order(cfg, scenario_file, robots_file, layout_file, self.discovery)
-        self._has_bridge = order.bridge is not None
         if cfg.firmware == "sil":
             order = with_firmware(order, n)
         self._specs = order.by_name
@@ -354,7 +352,7 @@ class Launcher:
         held up by a loaded machine falls so far behind that the samples it missed are
         gone from the bridge's history, and the outputs end early (seen in a test)."""
         duration = self.config.run_time
-        if not self._has_bridge or duration <= 0 or self.t_go is None:
+        if names.SIM_BRIDGE_NODE not in self._specs or duration <= 0 or self.t_go is None:
             return
         at = self.t_go + duration + 0.5 * self.config.scenario.dt
         if self.restart is not None:

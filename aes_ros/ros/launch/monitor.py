@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 import rclpy
 from geometry_msgs.msg import PoseArray, TwistStamped
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.experimental import EventsExecutor
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rosgraph_msgs.msg import Clock
@@ -351,8 +351,8 @@ class Monitor:
 
     def pause_bridge_at(self, t: float, timeout: float) -> None:
         """Set the bridge's ``pause_at`` to sim time ``t`` [s]; LaunchError if it refuses."""
-        value = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(t))
-        request = SetParameters.Request(parameters=[Parameter(name="pause_at", value=value)])
+        pause_at = Parameter("pause_at", value=float(t)).to_parameter_msg()
+        request = SetParameters.Request(parameters=[pause_at])
         service = f"/{names.SIM_BRIDGE_NODE}/set_parameters"
         result = self.call(SetParameters, service, request, timeout).results[0]
         if not result.successful:
