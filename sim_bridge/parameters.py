@@ -91,8 +91,8 @@ def declare_bridge_parameters(node: Node, ir_rate: float = 20.0) -> None:
         "pause_at",
         0.0,
         rp.float_descriptor(
-            "the world pauses (its clock too) once its sim time reaches this; set it later "
-            "or to 0 to go on; 0 = never (a launch sets it to the run's end)",
+            "the world pauses (its clock too) once its sim time reaches this, and publishes "
+            "nothing until it is set later or to 0; 0 = never (a launch sets it to the run's end)",
             "s",
             0.0,
             1e9,

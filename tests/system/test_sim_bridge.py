@@ -261,18 +261,24 @@ def test_runtime_parameters_and_dynamic_mode(spawn, probe):
 
 
 def test_pause_at_holds_the_world_there_until_it_is_set_later(spawn, probe):
-    """A launch sets ``pause_at`` to the run's end: the bridge waits there, its clock
-    too, rather than run on past it, and goes on once ``pause_at`` is moved on."""
-    _, bridge = start_bridge(spawn, probe, 2, "num_robots:=2", "pause_at:=1.0")
-    probe.wait(lambda: bridge.clock and bridge.clock[-1] >= 1.0, 20.0, "/clock at 1 s")
-    time.sleep(1.0)  # real time: running on, the clock would be at 2 s
-    assert bridge.clock[-1] == pytest.approx(1.0)
+    """A launch sets ``pause_at`` to the run's end once the run has started: the bridge
+    waits there, its clock too, rather than run on past it, and goes on once
+    ``pause_at`` is moved on. (Set at runtime, as the launcher does: a held clock is
+    not published again, so the probe must be listening before the hold.)"""
+    _, bridge = start_bridge(spawn, probe, 2, "num_robots:=2", "pause_at:=600.0")
+    probe.wait(lambda: bridge.clock and bridge.clock[-1] >= 0.1, 20.0, "/clock")
+    hold = math.ceil(bridge.clock[-1]) + 1.0
+    half_step = 0.025  # at 20 Hz: the first step at or past pause_at is the one at `hold`
+    assert set_bridge_parameter(probe, "pause_at", hold - half_step)[0]
+    probe.wait(lambda: bridge.clock[-1] >= hold - 1e-6, 20.0, f"/clock at {hold:g} s")
+    time.sleep(1.0)  # real time: running on, the clock would be 1 s further
+    assert bridge.clock[-1] == pytest.approx(hold)
     ok, reason = set_bridge_parameter(probe, "pause_at", -1.0)  # out of range: refused
     assert not ok and "pause_at" in reason
-    assert set_bridge_parameter(probe, "pause_at", 1.5)[0]
-    probe.wait(lambda: bridge.clock[-1] >= 1.5, 20.0, "/clock at 1.5 s")
+    assert set_bridge_parameter(probe, "pause_at", hold + 0.5 - half_step)[0]
+    probe.wait(lambda: bridge.clock[-1] >= hold + 0.5 - 1e-6, 20.0, "/clock moved on")
     time.sleep(0.5)
-    assert bridge.clock[-1] == pytest.approx(1.5)
+    assert bridge.clock[-1] == pytest.approx(hold + 0.5)
 
 
 def colliding_scenario(path) -> str:
