@@ -9,7 +9,7 @@ avoid, with nothing else of the system running:
 1. ``control``: a robot host's work per step without ROS: decode one ``/swarm/poses``
    of N robots (:func:`aes_ros.ros.cdr.decode_pose_array`), each robot's
    :meth:`robot_node.controller.RobotController.poses_input`, one
-   :func:`aes_ros.model.evaluate_robots` for all, one :func:`aes_ros.ros.cdr.encode_twist`
+   :func:`aes_ros.robot_batch.evaluate_robots` for all, one :func:`aes_ros.ros.cdr.encode_twist`
    each.
 2. ``publish``: a process with N publishers ``/mona_<i>/cmd_vel`` (the robots' QoS)
    publishing one raw Twist per robot per step at ``rate`` Hz; its CPU per message,
@@ -58,7 +58,7 @@ CORES = 2
 
 def control_us(robots: int, rate: float, steps: int) -> float:
     """µs of CPU per robot-step of the control law of ``robots`` robots, without ROS."""
-    from aes_ros.model import evaluate_robots
+    from aes_ros.robot_batch import evaluate_robots
     from aes_ros.ros.cdr import PoseArrayEncoder, decode_pose_array, encode_twist
     from robot_node.controller import RobotController, RobotSettings
     from robot_node.rotation_center import rotation_center_rule

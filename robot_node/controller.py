@@ -2,7 +2,7 @@
 
 :class:`RobotController` turns what a robot hears (the poses of the swarm or
 odometry, the swarm command) into the inputs of the control law
-(:class:`aes_ros.model.RobotInput`, evaluated by :func:`aes_ros.model.evaluate_robots`):
+(:class:`aes_ros.robot_batch.RobotInput`, evaluated by :func:`aes_ros.robot_batch.evaluate_robots`):
 the robot's sheet with rest lengths latched at first sight where none were given,
 the neighbours still alive (:mod:`robot_node.liveness`), the rotation centre
 (:mod:`robot_node.rotation_center`), Δt from the stamps, the noise generator, the
@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aes_ros.model import Gains, RobotInput, SwarmCommand
+from aes_ros.model import Gains, SwarmCommand
+from aes_ros.robot_batch import RobotInput
 from robot_node.ir_readings import IrReadings
 from robot_node.liveness import NeighborLiveness
 from robot_node.rotation_center import RotationCenterRule

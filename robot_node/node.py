@@ -1,7 +1,7 @@
 """AES robot node: the controller of one Mona robot (docs/design.md#motion, #ros-interface).
 
 For every new pose of its robot the node evaluates the control law
-(:func:`aes_ros.model.evaluate_robots`, i.e. :func:`aes_ros.model.robot_command`,
+(:func:`aes_ros.robot_batch.evaluate_robots`, i.e. :func:`aes_ros.model.robot_command`,
 E1–E6) and publishes exactly one ``cmd_vel`` (geometry_msgs/Twist) and, when
 anything subscribes to it, one ``aes_force`` (the noise-free force f_i,
 geometry_msgs/Vector3Stamped in ``odom``; unheard, it would cost a third of the
@@ -40,7 +40,8 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Range
 
 from aes_ros.avoidance import N_IR
-from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand, RobotInput
+from aes_ros.model import GAIN_FIELDS, Gains, RobotCommand
+from aes_ros.robot_batch import RobotInput
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
 from aes_ros.ros.cdr import Vector3StampedEncoder, encode_twist

@@ -7,7 +7,7 @@ with hundreds of robots, reads the swarm's topics through one :class:`SwarmInput
 in the ``odom`` source each ``/mona_<j>/odom`` its robots read (:meth:`listen_odom`).
 Each message is checked and converted once and handed to every robot, and the
 control law of all robots acting on a poses message is evaluated in one call
-(:func:`aes_ros.model.evaluate_robots`); in the ``odom`` source the robots' inputs of
+(:func:`aes_ros.robot_batch.evaluate_robots`); in the ``odom`` source the robots' inputs of
 one step are gathered and evaluated together too (:meth:`SwarmInputs.odom_input`).
 So both layouts take the same path.
 
@@ -29,8 +29,9 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_msgs.msg import Bool
 
-from aes_ros.model import RobotCommand, RobotInput, SwarmCommand, evaluate_robots
+from aes_ros.model import RobotCommand, SwarmCommand
 from aes_ros.params import PARAMS, ParameterError
+from aes_ros.robot_batch import RobotInput, evaluate_robots
 from aes_ros.ros import interface as names
 from aes_ros.ros.cdr import decode_odometry, decode_pose_array
 from aes_ros.ros.conversions import BadMessageError, point_to_array, stamp_to_ns, twist_to_drive

@@ -9,8 +9,9 @@ import pytest
 from aes_ros import model
 from aes_ros.avoidance import AVOIDANCE_RANGE, avoidance_force
 from aes_ros.ir_readings import ir_ranges
-from aes_ros.model import Gains, RobotInput, SwarmCommand, evaluate_robots, robot_command
+from aes_ros.model import Gains, SwarmCommand, robot_command
 from aes_ros.mona.geometry import MonaGeometry
+from aes_ros.robot_batch import RobotInput, evaluate_robots
 
 
 def reference(job: RobotInput) -> tuple[float, float, np.ndarray]:

@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from aes_ros.model import Gains, SwarmCommand, evaluate_robots
+from aes_ros.model import Gains, SwarmCommand
+from aes_ros.robot_batch import evaluate_robots
 from robot_node.controller import RobotController, RobotSettings
 from robot_node.ir_readings import MAX_AGE, IrReadings
 from robot_node.rotation_center import rotation_center_rule

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from aes_ros import formations, metrics, model
-from aes_ros.model import Gains, RobotInput, SwarmCommand, evaluate_robots, robot_command
+from aes_ros.model import Gains, SwarmCommand, robot_command
+from aes_ros.robot_batch import RobotInput, evaluate_robots
 
 QUIET = Gains(d_r=0.0, d_theta=0.0)
 

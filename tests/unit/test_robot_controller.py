@@ -9,7 +9,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from aes_ros.model import Gains, SwarmCommand, evaluate_robots, robot_command
+from aes_ros.model import Gains, SwarmCommand, robot_command
+from aes_ros.robot_batch import evaluate_robots
 from robot_node.controller import RobotController, RobotSettings, sheet_error
 from robot_node.liveness import NeighborLiveness
 from robot_node.rotation_center import RotationCenterRule, rotation_center_rule
