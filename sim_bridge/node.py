@@ -20,12 +20,10 @@ import math
 import sys
 import time
 
-from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import PoseArray, Twist
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import Twist
 from rclpy.clock import Clock, ClockType
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
@@ -36,18 +34,18 @@ from aes_ros.params import ParameterError
 from aes_ros.perception import PerceptionSettings
 from aes_ros.ros import interface as names
 from aes_ros.ros import parameters as rp
-from aes_ros.ros.cdr import OdometryEncoder, PoseArrayEncoder, decode_twist
+from aes_ros.ros.cdr import decode_twist
 from aes_ros.ros.conversions import BadMessageError, stamp_to_ns
 from aes_ros.ros.diagnostics import SILENT_AFTER, robots_status
 from aes_ros.ros.node_tools import ThrottledWarnings
-from aes_ros.ros.qos import LATCHED, LATEST_COMMAND, SENSOR, STREAM_WRITER
+from aes_ros.ros.qos import LATCHED, LATEST_COMMAND
 from aes_ros.ros.spin import run_node_process
 from aes_ros.world_state import WorldState
 from sim_bridge.ir_sensors import IrSensors
 from sim_bridge.lockstep import LockstepBarrier
 from sim_bridge.loop_stats import ControlLoopStats
 from sim_bridge.parameters import declare_bridge_parameters
-from sim_bridge.perceived_poses import PerceivedPoses
+from sim_bridge.state_output import StateOutput
 from sim_bridge.world import World
 
 #: Wall-clock time [s] after which a lockstep bridge still waiting for commands
@@ -79,7 +77,8 @@ class SimBridgeNode(Node):
     (:class:`sim_bridge.world.World`).
 
     Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
-    index = robot id), ``/mona_<i>/odom``, ``/mona_<i>/ir_<k>`` (IR sensors; their
+    index = robot id), ``/mona_<i>/odom`` (:class:`sim_bridge.state_output.StateOutput`),
+    ``/mona_<i>/ir_<k>`` (IR sensors; their
     ``ir_*`` parameters: :class:`sim_bridge.ir_sensors.IrSensors`); subscribes
     ``/mona_<i>/cmd_vel``. With
     the scenario's perception error on (``perception_*``, :mod:`aes_ros.perception`),
@@ -103,7 +102,6 @@ class SimBridgeNode(Node):
         self.n = len(headings)
         self.rate = get("publish_rate").value
         self.dt = 1.0 / self.rate
-        self.dt_ns = round(1e9 / self.rate)
         self.limits = (scenario.max_linear_speed, scenario.max_angular_speed)
         self.lockstep = get("lockstep").value
         self.real_time_factor = get("real_time_factor").value
@@ -145,29 +143,13 @@ class SimBridgeNode(Node):
         self.publish_wall = self.last_publish  # when the newest state went out [s, monotonic]
         self.stats = ControlLoopStats(self.n, self.last_publish, self.world.step_count, self.dt)
 
-        self.clock_pub = self.create_publisher(ClockMsg, names.CLOCK, STREAM_WRITER)
-        self.poses_pub = self.create_publisher(PoseArray, names.POSES, STREAM_WRITER)
-        # The scenario's perception error: /swarm/poses perceived, the exact poses apart.
-        perception = PerceptionSettings.from_mapping(scenario.values)
-        self.perceived: PerceivedPoses | None = None
-        if perception.enabled(self.dt):
-            self.perceived = PerceivedPoses(perception, self.n, self.dt, get("seed").value)
-            self.truth_pub = self.create_publisher(
-                PoseArray, names.GROUND_TRUTH_POSES, STREAM_WRITER
-            )
+        self.output = StateOutput(
+            self, self.world, PerceptionSettings.from_mapping(scenario.values), self.rate,
+            get("seed").value,
+        )  # fmt: skip
         # Every QoS event handler is one more entity in each wait of the executor;
         # robot 0's report incompatible QoS (all robots are alike), the others none.
-        quiet_pub = PublisherEventCallbacks(use_default_callbacks=False)
         quiet_sub = SubscriptionEventCallbacks(use_default_callbacks=False)
-        self.odom_pubs = [
-            self.create_publisher(
-                Odometry,
-                names.robot_topic(i, names.ODOM),
-                SENSOR,
-                event_callbacks=quiet_pub if i else None,
-            )
-            for i in range(self.n)
-        ]
         self.cmd_subs = [
             self.create_subscription(
                 Twist,
@@ -187,8 +169,6 @@ class SimBridgeNode(Node):
         self.create_service(SetBool, names.SIM_PAUSE, self.on_pause)
         self.create_service(Trigger, names.SIM_STATS, self.on_stats)
         self.ir = IrSensors(self, self.world, get("seed").value)  # /mona_<i>/ir_<k>
-        self._build_messages()
-        self._update_odom_listeners()
         self.add_post_set_parameters_callback(self.on_parameters_set)
 
         self.step_timer = self.create_timer(self._step_period(), self.on_step, clock=self.steady)
@@ -207,22 +187,6 @@ class SimBridgeNode(Node):
             f", real_time_factor={self.real_time_factor:g}, t={self.world.time:g} s"
         )
         self.publish_state()
-
-    # --- set-up ----------------------------------------------------------------
-    def _build_messages(self) -> None:
-        """Messages reused every step: only their numbers change.
-
-        ``/swarm/poses`` and every robot's odometry are written straight into their
-        wire format (:class:`aes_ros.ros.cdr.PoseArrayEncoder`,
-        :class:`~aes_ros.ros.cdr.OdometryEncoder`).
-        """
-        self.stamp = Time()
-        self.clock_msg = ClockMsg(clock=self.stamp)
-        self.poses_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
-        self.seen_encoder = PoseArrayEncoder(self.n, names.WORLD_FRAME)
-        self.odom_encoders = [
-            OdometryEncoder(names.WORLD_FRAME, names.base_link(i)) for i in range(self.n)
-        ]
 
     def _cmd_callback(self, robot_id: int):
         def on_cmd_vel(data: bytes) -> None:
@@ -260,7 +224,7 @@ class SimBridgeNode(Node):
     def on_recorder_progress(self, msg: ClockMsg) -> None:
         """The recorder has written the poses up to its stamp: it answered this step
         if that is the state published last."""
-        if stamp_to_ns(msg.clock) >= stamp_to_ns(self.stamp):
+        if stamp_to_ns(msg.clock) >= stamp_to_ns(self.output.stamp):
             self._arrived(self.recorder_member, time.monotonic(), "the recorder")
 
     def _arrived(self, member: int, now: float, who: str) -> None:
@@ -334,16 +298,10 @@ class SimBridgeNode(Node):
             self.publish_state()
         return False
 
-    def _update_odom_listeners(self) -> None:
-        """Robots whose odometry has a subscriber (checked 4x per wall second, not per step)."""
-        self.odom_listened = [
-            i for i, pub in enumerate(self.odom_pubs) if pub.get_subscription_count()
-        ]
-
     def on_watchdog(self) -> None:
         """Refresh the odometry listeners; in lockstep, re-publish the state if some
         robot has not answered for a while."""
-        self._update_odom_listeners()
+        self.output.update_listeners()
         if not self.lockstep or self.paused or self.barrier.complete:
             return
         self._drop_silent()
@@ -417,45 +375,10 @@ class SimBridgeNode(Node):
 
     # --- output ------------------------------------------------------------------
     def publish_state(self) -> None:
-        """Publish /clock, /swarm/poses and the odometry for the current step.
-
-        Odometry goes only to robots whose ``odom`` topic has a subscriber (the
-        ``odom`` neighbour source, a driver, ``ros2 topic echo``; a new subscriber
-        is noticed within 0.25 s): for nobody, building and publishing N messages
-        would cost more than the physics.
-        """
+        """Publish the current step's state (:class:`sim_bridge.state_output.StateOutput`)
+        and its IR readings."""
         self.publish_wall = time.monotonic()
-        ns = self.world.step_count * self.dt_ns
-        self.stamp.sec, self.stamp.nanosec = divmod(ns, 1_000_000_000)
-        self.clock_pub.publish(self.clock_msg)
-        positions, headings = self.world.poses()
-        exact = self.poses_encoder.encode(self.stamp.sec, self.stamp.nanosec, positions, headings)
-        if self.perceived is None:
-            self.poses_pub.publish(exact)
-        else:
-            self.truth_pub.publish(exact)
-            seen = self.perceived.frame(self.world.step_count, positions, headings)
-            self.poses_pub.publish(
-                self.seen_encoder.encode(self.stamp.sec, self.stamp.nanosec, *seen)
-            )
-        listened = self.odom_listened
-        if listened:
-            forward, sideways, turn = self.world.velocities()
-            encoded = self.poses_encoder.poses  # x, y, z, qx, qy, qz, qw as just published
-            sec, nanosec = self.stamp.sec, self.stamp.nanosec
-            rows = zip(
-                listened,
-                encoded[listened, 0:2].tolist(),
-                encoded[listened, 5:7].tolist(),
-                forward[listened].tolist(),
-                sideways[listened].tolist(),
-                turn[listened].tolist(),
-                strict=True,
-            )
-            for i, (x, y), (qz, qw), fwd, side, w in rows:
-                data = self.odom_encoders[i].encode(sec, nanosec, x, y, qz, qw, fwd, side, w)
-                self.odom_pubs[i].publish(data)
-        self.ir.publish(self.stamp)
+        self.ir.publish(self.output.publish())
         self.last_publish = time.monotonic()
 
     def destroy_node(self) -> None:
