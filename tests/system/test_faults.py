@@ -38,6 +38,7 @@ from aes_ros.metrics_csv import CSV_COLUMNS
 from aes_ros.ros import interface as names
 from aes_ros.ros.bag import bag_segments, read_bags, recording_summary
 from aes_ros.ros.conversions import stamp_to_ns
+from aes_ros.ros.launch import reaper
 from aes_ros.ros.launch.events import read_events
 from aes_ros.ros.launch.processes import FASTDDS_PROFILE
 from aes_ros.ros.qos import COMMAND, LATCHED, STREAM_WRITER
@@ -235,7 +236,7 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     launcher.wait(10)
     # the reaper ends once the probe has let go of the launcher's port, which it maps
     # until the killed participant's lease (20 s) runs out, and removes it
-    assert_no_orphans(ros_env, timeout=40.0)
+    assert_no_orphans(ros_env, timeout=reaper.SETTLE + 20.0)
     assert abandoned_shm(shm_before, domain) == set(), "shared memory left behind"
 
     rows = metrics_rows(out / "metrics.csv")  # complete rows, the usual reader
