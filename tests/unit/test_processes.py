@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
@@ -65,6 +66,41 @@ def test_the_reaper_kills_only_the_processes_it_was_given(tmp_path: Path) -> Non
         for proc in (listed, reused):
             proc.kill()
             proc.wait()
+
+
+HOLDS_A_LOCK = """
+import fcntl, signal, sys, time
+signal.signal(signal.SIGTERM, signal.SIG_IGN)  # a node that does not stop in time
+lock = open(sys.argv[1], "w")
+fcntl.flock(lock, fcntl.LOCK_EX)
+memory = bytearray(1 << 30)
+memory[:: 1 << 12] = b"\\1" * (len(memory) >> 12)  # 1 GiB in use: a slow exit
+print("ready", flush=True)
+time.sleep(60)
+"""
+
+
+def test_a_process_the_reaper_kills_has_let_go_of_its_files_when_reap_returns(
+    tmp_path: Path,
+) -> None:
+    """The reaper cleans shared memory right after :func:`reap`: a lock still held by a
+    process killed but not yet gone would make its port look live and be left behind
+    (a dying process tears its memory down before it closes its files)."""
+    lock_path = tmp_path / "port_el"
+    child = subprocess.Popen(
+        [sys.executable, "-c", HOLDS_A_LOCK, str(lock_path)],
+        stdout=subprocess.PIPE, text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "ready\n"
+        started = start_time(child.pid)
+        assert started is not None
+        assert reap([(child.pid, started)], grace=0.2) == [child.pid]
+        with open(lock_path) as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)  # free: raises if still held
+    finally:
+        child.kill()
+        child.wait()
 
 
 def test_the_reaper_starts_alone_and_without_a_warning() -> None:

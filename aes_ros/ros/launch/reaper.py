@@ -32,11 +32,10 @@ from aes_ros.ros.launch.shared_memory import clean_shared_memory
 #: 0.3 s after its participant said goodbye, but the launcher's own participant, killed,
 #: says none: a peer keeps its port mapped until that participant's lease runs out
 #: (Fast DDS's default, 20 s), and with 10 s here the file was left behind once it let
-#: go (seen in CI). A loaded machine notices the lease's end late: at 25 s it was left
-#: behind too (CI, once in about twenty runs). So three leases; the reaper ends as soon
-#: as the peers have let go, so this is only ever waited for in full by a peer that
-#: never does.
-SETTLE = 60.0
+#: go (seen in CI). So longer than the lease.
+SETTLE = 25.0
+#: Seconds :func:`reap` waits for the processes it SIGKILLed to be gone.
+KILL_WAIT = 10.0
 
 
 def alive(pid: int, started: int) -> bool:
@@ -66,7 +65,8 @@ def read_pid_file(path: Path) -> list[tuple[int, int]]:
 
 def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
     """Wait up to ``grace`` s for the processes of ``entries`` (pid, start time) to
-    exit, then SIGKILL the process groups of those still running; returns their pids.
+    exit, then SIGKILL the process groups of those still running and wait (up to
+    :data:`KILL_WAIT` s) until they are gone; returns their pids.
     A pid running another process than the one listed is left alone (and said so)."""
     deadline = time.monotonic() + grace
     while any(alive(*entry) for entry in entries) and time.monotonic() < deadline:
@@ -76,11 +76,16 @@ def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
         if alive(pid, started):
             with contextlib.suppress(ProcessLookupError, PermissionError):
                 os.killpg(pid, signal.SIGKILL)
-                killed.append(pid)
+                killed.append((pid, started))
         elif (now := start_time(pid)) is not None:
             print(f"reaper: pid {pid} is another process now (started at {now}, "
                   f"not {started}): left alone", flush=True)  # fmt: skip
-    return killed
+    # A killed process tears its memory down before it closes its files: until it is
+    # gone its Fast DDS locks look live, and the clean after this would leave its ports.
+    deadline = time.monotonic() + KILL_WAIT
+    while any(alive(*entry) for entry in killed) and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return [pid for pid, _ in killed]
 
 
 def start_reaper(pid_file: Path, log: Path) -> int:
