@@ -234,8 +234,8 @@ def test_a_killed_launcher_leaves_its_outputs_and_no_process(spawn, probe, ros_e
     os.kill(launcher.pid, signal.SIGKILL)  # the launcher alone, not its children
     t_kill = probe.now
     launcher.wait(10)
-    # the reaper ends once the probe has let go of the launcher's port, which it maps
-    # until the killed participant's lease (20 s) runs out, and removes it
+    # the reaper cleans for a lease and more (reaper.LINGER): until the killed launcher's
+    # lease runs out the probe still sends to it and makes its port again
     assert_no_orphans(ros_env, timeout=reaper.SETTLE + 20.0)
     assert abandoned_shm(shm_before, domain) == set(), "shared memory left behind"
 

@@ -9,6 +9,8 @@ import os
 import shutil
 import subprocess
 import sys
+import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -132,6 +134,26 @@ def test_young_files_wait_for_a_later_pass(shm_dir: Path, monkeypatch: pytest.Mo
     shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
     assert all(path.exists() for path in files.values())
     shared_memory.clean_shared_memory(DOMAIN, settle=5.0)
+    assert list(shm_dir.iterdir()) == []
+
+
+def test_a_lingering_clean_removes_a_port_made_again_meanwhile(shm_dir: Path) -> None:
+    """A live peer makes a killed participant's port again when it next sends to it, a
+    few seconds after the clean that removed it: a clean that lingers removes it again;
+    one that ends at once leaves it."""
+    make_port(shm_dir, GONE)
+    again = threading.Timer(0.5, make_port, (shm_dir, GONE))
+    again.start()
+    shared_memory.clean_shared_memory(DOMAIN, settle=0.0)  # ends at once
+    again.join()
+    assert len(list(shm_dir.iterdir())) == 3  # made again after the clean
+    shared_memory.clean_shared_memory(DOMAIN, settle=0.0)
+    again = threading.Timer(0.5, make_port, (shm_dir, GONE))
+    again.start()
+    start = time.monotonic()
+    shared_memory.clean_shared_memory(DOMAIN, settle=10.0, linger=1.5)
+    assert 1.5 <= time.monotonic() - start < 5.0
+    again.join()
     assert list(shm_dir.iterdir()) == []
 
 

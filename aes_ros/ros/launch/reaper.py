@@ -26,14 +26,16 @@ from pathlib import Path
 from aes_ros.ros.launch.processes import ros_domain, start_time
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
-#: Seconds the reaper waits for live peers (a ``ros2 topic echo``, a test's probe) to let
-#: go of the dead processes' ports before it removes them. Nobody waits for the reaper,
-#: so it waits longer than a launch's own stop (2 s). A peer lets go of a port about
-#: 0.3 s after its participant said goodbye, but the launcher's own participant, killed,
-#: says none: a peer keeps its port mapped until that participant's lease runs out
-#: (Fast DDS's default, 20 s), and with 10 s here the file was left behind once it let
-#: go (seen in CI). So longer than the lease.
-SETTLE = 25.0
+#: Seconds the reaper goes on cleaning after the children are gone. A live peer (a
+#: ``ros2 topic echo``, a test's probe) keeps sending to a killed participant's port (the
+#: launcher's own, or a child's SIGKILLed after the grace) until that participant's lease
+#: runs out (Fast DDS's default, 20 s), and makes the port again if it was removed; once
+#: it drops the participant it removes the port but may leave its lock file and mutex
+#: (seen in CI: a clean that ended at once left them). So a lease and a margin.
+LINGER = 30.0
+#: Seconds at most the reaper waits for live peers to let go of the dead processes'
+#: ports (a peer that still maps one) before it gives up on them.
+SETTLE = 40.0
 #: Seconds :func:`reap` waits for the processes it SIGKILLed to be gone.
 KILL_WAIT = 10.0
 
@@ -113,7 +115,7 @@ def main(argv: list[str] | None = None) -> int:
     while os.read(sys.stdin.fileno(), 4096):  # until the launcher's end of the pipe closes
         pass
     reap(read_pid_file(args.pids), args.grace)
-    clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE)
+    clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE, linger=LINGER)
     return 0
 
 
