@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from aes_ros.ros.launch.processes import ProcessSet, die_with_parent, start_time
-from aes_ros.ros.launch.reaper import alive, read_pid_file, reap
+from aes_ros.ros.launch.reaper import STOPPED, alive, read_pid_file, reap
 from aes_ros.ros.programs import LaunchError
 
 
@@ -101,6 +101,37 @@ def test_a_process_the_reaper_kills_has_let_go_of_its_files_when_reap_returns(
     finally:
         child.kill()
         child.wait()
+
+
+def test_the_reaper_lingers_only_after_a_launcher_that_did_not_stop_its_processes(
+    tmp_path: Path,
+) -> None:
+    """A launcher that stopped every process itself writes STOPPED to the reaper's pipe:
+    the reaper cleans once and exits. A killed one writes nothing: the reaper goes on
+    cleaning for LINGER seconds (peers may make a dead participant's port again)."""
+    pids = tmp_path / "pids"
+    pids.write_text("")
+    env = {**os.environ, "ROS_DOMAIN_ID": "231"}  # a domain no test uses: nothing to remove
+
+    def reaper(said: bytes) -> subprocess.Popen:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "aes_ros.ros.launch.reaper", str(pids)],
+            stdin=subprocess.PIPE, env=env, start_new_session=True,
+        )  # fmt: skip
+        assert proc.stdin is not None
+        proc.stdin.write(said)
+        proc.stdin.close()  # the launcher exits
+        return proc
+
+    told, killed = reaper(STOPPED), reaper(b"")
+    try:
+        assert told.wait(20) == 0
+        time.sleep(1.0)
+        assert killed.poll() is None  # still cleaning
+    finally:
+        for proc in (told, killed):
+            proc.kill()
+            proc.wait()
 
 
 def test_the_reaper_starts_alone_and_without_a_warning() -> None:

@@ -78,7 +78,7 @@ from aes_ros.ros.launch.processes import (
     fastdds_environment,
     images_environment,
 )
-from aes_ros.ros.launch.reaper import start_reaper
+from aes_ros.ros.launch.reaper import STOPPED, start_reaper
 from aes_ros.ros.launch.recovery import Backoff, RestartCommands
 from aes_ros.ros.launch.supervision import Supervision
 from aes_ros.ros.programs import LaunchError
@@ -411,7 +411,9 @@ class Launcher:
         if self.monitor is not None:
             self.monitor.close()
         if self._reaper_pipe is not None:
-            os.close(self._reaper_pipe)  # the reaper finds nothing left and exits
+            if not self.killed:  # every process said goodbye: the reaper need not linger
+                os.write(self._reaper_pipe, STOPPED)
+            os.close(self._reaper_pipe)
             self._reaper_pipe = None
         if self.recorder is not None:
             self.say(f"launch: {recorders[-1].last_line() or 'recorder wrote nothing'}")

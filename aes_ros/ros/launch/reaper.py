@@ -1,15 +1,16 @@
 """Cleans up after a launcher that died: ``python -m aes_ros.ros.launch.reaper PIDS_FILE``.
 
 The launcher starts it first, in a session of its own, with a pipe as its
-standard input, and never writes to the pipe. When the launcher exits (cleanly
-or killed with SIGKILL) the pipe closes and this process wakes up: it waits up
-to ``--grace`` seconds for the node processes listed in ``PIDS_FILE`` (a line
-``<pid> <start time>`` each; they get SIGTERM from the kernel when their parent
-dies and shut down cleanly), SIGKILLs the process groups of those left, and
-removes the Fast DDS shared-memory files they left in the launcher's ROS domain
-(:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`). A pid whose
-process started at another time than listed is another process's by now: it is
-left alone.
+standard input, and writes to the pipe only :data:`STOPPED`, once it has stopped
+every process itself without a SIGKILL. When the launcher exits (cleanly or killed with SIGKILL) the
+pipe closes and this process wakes up: it waits up to ``--grace`` seconds for the
+node processes listed in ``PIDS_FILE`` (a line ``<pid> <start time>`` each; they
+get SIGTERM from the kernel when their parent dies and shut down cleanly),
+SIGKILLs the process groups of those left, and removes the Fast DDS shared-memory
+files they left in the launcher's ROS domain
+(:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`), for :data:`LINGER`
+seconds unless the launcher said :data:`STOPPED`. A pid whose process started at
+another time than listed is another process's by now: it is left alone.
 """
 
 from __future__ import annotations
@@ -33,6 +34,9 @@ from aes_ros.ros.launch.shared_memory import clean_shared_memory
 #: it drops the participant it removes the port but may leave its lock file and mutex
 #: (seen in CI: a clean that ended at once left them). So a lease and a margin.
 LINGER = 30.0
+#: What a launcher writes to the reaper's pipe once it has stopped every process,
+#: none SIGKILLed (each said goodbye, so no peer makes a port of theirs again).
+STOPPED = b"stopped"
 #: Seconds at most the reaper waits for live peers to let go of the dead processes'
 #: ports (a peer that still maps one) before it gives up on them.
 SETTLE = 40.0
@@ -92,7 +96,8 @@ def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
 
 def start_reaper(pid_file: Path, log: Path) -> int:
     """Start a reaper for the processes listed in ``pid_file``; returns the write end
-    of its pipe, which the caller keeps open until it is done (never writes to it)."""
+    of its pipe, which the caller keeps open until it is done, and writes
+    :data:`STOPPED` to before it closes it if it stopped every process itself."""
     read_end, write_end = os.pipe()
     with open(log, "a") as out:
         subprocess.Popen(
@@ -112,10 +117,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--grace", type=float, default=15.0, help="seconds to wait for them")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C meant for the launcher
-    while os.read(sys.stdin.fileno(), 4096):  # until the launcher's end of the pipe closes
-        pass
+    said = b""
+    while chunk := os.read(sys.stdin.fileno(), 4096):  # until the launcher's end closes
+        said += chunk
     reap(read_pid_file(args.pids), args.grace)
-    clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE, linger=LINGER)
+    # after a clean stop every participant said goodbye: no peer makes a port again
+    linger = 0.0 if said == STOPPED else LINGER
+    clean_shared_memory(ros_domain(dict(os.environ)), settle=SETTLE, linger=linger)
     return 0
 
 
