@@ -78,9 +78,8 @@ class SimBridgeNode(Node):
 
     Topics: publishes ``/clock``, ``/swarm/poses`` (PoseArray, frame odom,
     index = robot id), ``/mona_<i>/odom`` (:class:`sim_bridge.state_output.StateOutput`),
-    ``/mona_<i>/ir_<k>`` (IR sensors; their
-    ``ir_*`` parameters: :class:`sim_bridge.ir_sensors.IrSensors`); subscribes
-    ``/mona_<i>/cmd_vel``. With
+    ``/mona_<i>/ir_<k>`` (IR sensors; their ``ir_*`` parameters:
+    :class:`sim_bridge.ir_sensors.IrSensors`); subscribes ``/mona_<i>/cmd_vel``. With
     the scenario's perception error on (``perception_*``, :mod:`aes_ros.perception`),
     ``/swarm/poses`` is what a tracker would show the robots
     (:mod:`sim_bridge.perceived_poses`) and the exact poses go to

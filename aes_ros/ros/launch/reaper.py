@@ -2,12 +2,12 @@
 
 The launcher starts it first, in a session of its own, with a pipe as its
 standard input, and writes to the pipe only :data:`STOPPED`, once it has stopped
-every process itself without a SIGKILL. When the launcher exits (cleanly or killed with SIGKILL) the
-pipe closes and this process wakes up: it waits up to ``--grace`` seconds for the
-node processes listed in ``PIDS_FILE`` (a line ``<pid> <start time>`` each; they
-get SIGTERM from the kernel when their parent dies and shut down cleanly),
-SIGKILLs the process groups of those left, and removes the Fast DDS shared-memory
-files they left in the launcher's ROS domain
+every process itself without a SIGKILL. When the launcher exits (cleanly or killed
+with SIGKILL) the pipe closes and this process wakes up: it waits up to ``--grace``
+seconds for the node processes listed in ``PIDS_FILE`` (a line ``<pid> <start
+time>`` each; they get SIGTERM from the kernel when their parent dies and shut down
+cleanly), SIGKILLs the process groups of those left, and removes the Fast DDS
+shared-memory files they left in the launcher's ROS domain
 (:func:`aes_ros.ros.launch.shared_memory.clean_shared_memory`), for :data:`LINGER`
 seconds unless the launcher said :data:`STOPPED`. A pid whose process started at
 another time than listed is another process's by now: it is left alone.
@@ -74,9 +74,7 @@ def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
     exit, then SIGKILL the process groups of those still running and wait (up to
     :data:`KILL_WAIT` s) until they are gone; returns their pids.
     A pid running another process than the one listed is left alone (and said so)."""
-    deadline = time.monotonic() + grace
-    while any(alive(*entry) for entry in entries) and time.monotonic() < deadline:
-        time.sleep(0.1)
+    _wait_gone(entries, grace, 0.1)
     killed = []
     for pid, started in entries:
         if alive(pid, started):
@@ -88,10 +86,16 @@ def reap(entries: list[tuple[int, int]], grace: float) -> list[int]:
                   f"not {started}): left alone", flush=True)  # fmt: skip
     # A killed process tears its memory down before it closes its files: until it is
     # gone its Fast DDS locks look live, and the clean after this would leave its ports.
-    deadline = time.monotonic() + KILL_WAIT
-    while any(alive(*entry) for entry in killed) and time.monotonic() < deadline:
-        time.sleep(0.02)
+    _wait_gone(killed, KILL_WAIT, 0.02)
     return [pid for pid, _ in killed]
+
+
+def _wait_gone(entries: list[tuple[int, int]], timeout: float, poll: float) -> None:
+    """Wait up to ``timeout`` s, polling every ``poll`` s, until none of the processes of
+    ``entries`` (pid, start time) is :func:`alive`."""
+    deadline = time.monotonic() + timeout
+    while any(alive(*entry) for entry in entries) and time.monotonic() < deadline:
+        time.sleep(poll)
 
 
 def start_reaper(pid_file: Path, log: Path) -> int:
