@@ -174,14 +174,15 @@ def test_markers_only_while_subscribed_at_most_10_hz(spawn, probe, tmp_path):
     markers = arrivals[-1][1].markers
     assert sum(m.ns == "bodies" for m in markers) == N
     assert {m.header.frame_id for m in markers} == {names.WORLD_FRAME}
-    time.sleep(1.0)  # unsubscribed again
+    time.sleep(3.0)  # unsubscribed again: 30 arrays if it went on publishing
     launcher.send_signal(signal.SIGINT)
     assert launcher.wait(60) == 0
     log = (out / "logs" / f"{names.DASHBOARD_NODE}.log").read_text()
     published = int(re.search(r"(\d+) marker arrays published", log).group(1))
-    # what was published is what the subscriber got (give or take the messages in
-    # flight when it came and went): nothing while nobody listened
-    assert received <= published <= received + 3, (received, published)
+    # what was published is what the subscriber got, give or take what went out while
+    # discovery told the dashboard that the subscriber came and went (under a second
+    # each, 6 arrays seen on a loaded machine): nothing in the 2 s and 3 s nobody listened
+    assert received <= published <= received + 10, (received, published)
     # with no viewer, a frame is made only for the markers
     assert int(re.search(r"(\d+) frames made", log).group(1)) == published
 

@@ -285,7 +285,8 @@ def test_host_runs_every_robot(spawn, probe, source, per_participant):
         wants.append(expected(xy, yaw, i, table[i][keep], rest_table[i][keep], gains, command))
 
     def all_match() -> bool:
-        return all(
+        # the force topic is matched on its own: wait for it too, not only the commands
+        return all(forces) and all(
             c and (c[-1].linear.x, c[-1].angular.z) == pytest.approx((w.linear, w.angular))
             for c, w in zip(cmds, wants, strict=True)
         )
