@@ -3,7 +3,7 @@ over Fast DDS, marker ``ros``; fixtures in ``tests/system/conftest.py``) and
 ``tests/helpers/`` (importable as ``helpers``: ``pythonpath = ["tests"]`` in
 pyproject.toml).
 
-``pytest -n 2 --dist loadgroup`` (pytest-xdist; the README's test command) runs two
+``pytest -n 3 --dist loadgroup`` (pytest-xdist; the README's test command) runs three
 tests at a time, except the tests marked ``alone``: one worker runs them one after the
 other with no other test beside them (:mod:`helpers.machine_share`)."""
 

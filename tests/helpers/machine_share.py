@@ -1,4 +1,4 @@
-"""Tests share the machine when pytest runs them in parallel (``pytest -n 2 --dist
+"""Tests share the machine when pytest runs them in parallel (``pytest -n 3 --dist
 loadgroup``, pytest-xdist), except the ones marked ``alone``.
 
 A test marked ``alone`` loads both cores or judges rates and recovery times (the soak,
@@ -9,7 +9,7 @@ A turnstile gives the exclusive one precedence: once it waits, no other test sta
 
 The ``alone`` tests go to one worker, one after the other (the conftest gives them one
 ``xdist_group``), and that worker keeps the exclusive lock from one to the next: handing
-it over between them would cost a wait for the other worker's test every time.
+it over between them would cost a wait for the other workers' tests every time.
 
 Without pytest-xdist's workers (a plain ``pytest``) the tests run one after the other
 and nothing is locked. The locks live in a directory of the temporary directory that

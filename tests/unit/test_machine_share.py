@@ -130,9 +130,9 @@ def test_the_lock_directory_is_this_users_alone(parallel_run: None) -> None:
 
 
 def test_the_alone_tests_run_on_one_worker_in_one_row(tmp_path: Path) -> None:
-    """Under the README's ``pytest -n 2 --dist loadgroup`` the tests marked ``alone`` are one
-    worker's, one after the other: a pytest that stops grouping them (9.2 with xdist 3.8)
-    spreads them over both workers, each waiting for the other's."""
+    """Under ``pytest -n N --dist loadgroup`` (the README's N = 3; 2 here) the tests marked
+    ``alone`` are one worker's, one after the other: a pytest that stops grouping them (9.2
+    with xdist 3.8) spreads them over the workers, each waiting for the others'."""
     ours = Path(__file__).parents[1]  # this project's tests/: its conftest and helpers
     tests = tmp_path / "tests"
     tests.mkdir()
