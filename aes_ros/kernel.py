@@ -36,6 +36,7 @@ from aes_ros.ir import cast_rays, cast_rays_listed, mounting
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import kept_pairs
+from aes_ros.springs import spring_forces
 from aes_ros.xoshiro import camera_draws
 
 #: Layout of the ``params`` vector passed to :func:`advance`.
@@ -62,52 +63,6 @@ _IR_MOUNT = mounting(IR_ANGLES)
 _LIST_MARGIN = 1e-6
 _IR_LIST_SKIN = 1.5
 _CONTACT_LIST_SKIN = 1.0
-
-
-def spring_list(neighbors: np.ndarray, rest_lengths: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The sheet's springs for :func:`advance`: each spring once.
-
-    neighbors : (N, K) int64, -1 padded; rest_lengths : (N, K) [m].
-    Returns ends (S, 2) int64 (i, j), rest (S,) [m] and mutual (S,) bool: True when
-    j also has i as a neighbour with the same rest length (the spring acts on both;
-    listed once, with i < j), False for a one-way link (acts on i only).
-    """
-    i, slot = np.nonzero(neighbors >= 0)
-    j = neighbors[i, slot]
-    rest = rest_lengths[i, slot]
-    n = max(len(neighbors), 1)
-    key = dict(zip((i * n + j).tolist(), rest.tolist(), strict=True))
-    mutual = np.array([key.get(b * n + a) == r for a, b, r in zip(i, j, rest, strict=True)])
-    keep = ~mutual | (i < j)
-    ends = np.stack([i[keep], j[keep]], axis=1).astype(np.int64)
-    return ends, rest[keep].astype(float), mutual[keep]
-
-
-@njit(inline="always")
-def _spring_forces(
-    frame: np.ndarray,
-    ends: np.ndarray,
-    stiffness: np.ndarray,
-    rest: np.ndarray,
-    mutual: np.ndarray,
-    out: np.ndarray,
-) -> None:
-    """Spring forces (E1) on every robot from positions ``frame`` (N, ≥2) [m] into
-    ``out`` (N, 2), a spring at a time; ``stiffness`` = k / l per spring."""
-    out[:, :] = 0.0
-    for e in range(ends.shape[0]):
-        i = ends[e, 0]
-        j = ends[e, 1]
-        rx = frame[j, 0] - frame[i, 0]
-        ry = frame[j, 1] - frame[i, 1]
-        d = math.sqrt(rx * rx + ry * ry)
-        if d > 0.0:
-            scale = stiffness[e] * (d - rest[e]) / d
-            out[i, 0] += scale * rx
-            out[i, 1] += scale * ry
-            if mutual[e]:
-                out[j, 0] -= scale * rx
-                out[j, 1] -= scale * ry
 
 
 @njit(inline="always")
@@ -211,7 +166,7 @@ def advance(
     stop_at : (B, N) int64: robot i of run b does not move (u = w = 0, a failed
         robot) from run step ``stop_at[b, i]`` on; its springs still act.
     first_step : the run step of this call's first step.
-    springs : :func:`spring_list` of the sheet (used with perception on).
+    springs : :func:`aes_ros.springs.spring_list` of the sheet (used with perception on).
     seen : (B, N, 4) the perceived frame x, y [m], cos θ, sin θ, updated; (B, 0, 4)
         with perception off (the robots see the true state).
     ring : (B, D+1, N, 4) the true states (x, y, cos θ, sin θ) of the last D+1
@@ -297,7 +252,7 @@ def advance(
         listed = np.empty((0, 2), np.int64)
         near, skin = list_cutoffs(radius, sensing)
         if perceive:
-            _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
+            spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
         for step in range(n_steps):
             t = first_step + step
             cx, cy = _centroid(pos)
@@ -320,7 +275,7 @@ def advance(
                     now[i, 1] = pos[i, 1]
                     now[i, 2] = c
                     now[i, 3] = s
-                _spring_forces(pos, ends, spring_stiffness, spring_rest, mutual, true_force)
+                spring_forces(pos, ends, spring_stiffness, spring_rest, mutual, true_force)
                 if t % period == 0:  # a camera update: the state D steps ago, noised
                     camera_draws(camera_state[b], sigma_p > 0.0, miss_p > 0.0, camera_z, camera_u)
                     old = ring[b, (t + 1) % ring_len]
@@ -330,7 +285,7 @@ def advance(
                             view[i, 1] = old[i, 1] + sigma_p * camera_z[i, 1]
                             view[i, 2] = old[i, 2]
                             view[i, 3] = old[i, 3]
-                    _spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
+                    spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             casting = sensing and t % ir_period == 0
             if casting and touching:  # every robot's IR ranges, cast in the true state
                 if not have_trig:  # no centres and no list yet (this call's first step)
@@ -457,5 +412,5 @@ def advance(
 # constants compiled in from these modules must compile the kernel again.
 depend_on(
     advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.metrics",
-    "aes_ros.pair_list", "aes_ros.xoshiro",
+    "aes_ros.pair_list", "aes_ros.springs", "aes_ros.xoshiro",
 )  # fmt: skip

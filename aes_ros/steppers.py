@@ -19,7 +19,7 @@ from aes_ros import metrics
 from aes_ros.avoidance import AVOIDANCE_RANGE, N_IR, avoidance_force, ir_period_steps
 from aes_ros.contacts import ITERATIONS, resolve_contacts
 from aes_ros.ir_readings import ir_ranges
-from aes_ros.kernel import PARAM_ORDER, advance, spring_list
+from aes_ros.kernel import PARAM_ORDER, advance
 from aes_ros.model import (
     Gains,
     Noise,
@@ -45,6 +45,7 @@ from aes_ros.perception import (
     ring_slots,
 )
 from aes_ros.scenario import Scenario
+from aes_ros.springs import spring_list
 
 #: Noise is drawn per run in chunks of this many steps (part of what a seed means).
 CHUNK = 32

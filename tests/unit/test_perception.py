@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 
 from aes_ros import model, scenario, simulator
-from aes_ros.kernel import spring_list
 from aes_ros.params import ParameterError
 from aes_ros.perception import (
     PerceptionSettings,
@@ -22,6 +21,7 @@ from aes_ros.perception import (
     perceived_frame,
     perception_state,
 )
+from aes_ros.springs import spring_list
 
 DATA = Path(__file__).parents[1] / "data"
 #: every perception parameter on (τ = 3 steps, a camera update every 2 steps at Δt 0.05 s)
