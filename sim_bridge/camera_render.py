@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -52,133 +51,15 @@ from aes_ros.markers import (
     marker_image,
 )
 from sim_bridge.arena import solid_outlines
+from sim_bridge.camera_patches import SHIFT, Patch, Shades, reference_patch, robot_patch
 from sim_bridge.mona import MonaGeometry
 
 #: Points per circle of a body's silhouette.
 _CIRCLE_POINTS = 24
-#: Supersampling of the pre-rendered patches (their round edges are anti-aliased).
-_SUPERSAMPLE = 4
 #: Patch texels per image pixel. With one texel per pixel, the bilinear warp of a
 #: sharp patch moved edges by up to 0.07 px with their sub-pixel phase (measured);
 #: three, pre-filtered by a pixel's footprint, leave ~0.01 px.
 _OVERSAMPLE = 3
-#: Transparent texels around a patch, room for the pre-filter to spread into.
-_PAD = 3
-#: fillConvexPoly's fractional bits.
-_SHIFT = 4
-
-
-@dataclass(frozen=True)
-class Shades:
-    """Grey levels (0-255) of what the camera sees."""
-
-    floor: int = 128
-    body: int = 45
-    obstacle: int = 60
-    white: int = 235
-    black: int = 20
-
-
-@dataclass(frozen=True)
-class _Patch:
-    """A pre-rendered flat patch: premultiplied grey and alpha (0-255), (n, n, 2) uint8."""
-
-    image: np.ndarray
-    side: float  #: [m] covered by the patch's n texels
-
-
-def _alpha_patch(value: np.ndarray, alpha: np.ndarray, side: float, blur: float) -> _Patch:
-    """A premultiplied uint8 patch from supersampled value and alpha (uint8).
-
-    Area-downsampled by ``_SUPERSAMPLE``, then blurred by ``blur`` [texels]: the
-    footprint of an image pixel (a box of 1 px has the σ of a Gaussian of
-    1/√12 px), so that sampling the patch at pixel centres integrates the scene
-    over each pixel, as a sensor does.
-    """
-    n = value.shape[0] // _SUPERSAMPLE
-    a = alpha.astype(np.float32) / 255.0
-    small_a = cv2.resize(a, (n, n), interpolation=cv2.INTER_AREA)
-    small_v = cv2.resize(value.astype(np.float32) * a, (n, n), interpolation=cv2.INTER_AREA)
-    image = np.stack([small_v, 255.0 * small_a], axis=-1)
-    if blur > 0.0:
-        image = cv2.GaussianBlur(image, (0, 0), blur, borderType=cv2.BORDER_CONSTANT)
-    return _Patch(np.ascontiguousarray(np.clip(np.rint(image), 0, 255).astype(np.uint8)), side)
-
-
-def _marker_hi(marker_id: int, cell_hi: int, shades: Shades, dictionary_id: int) -> np.ndarray:
-    """The marker at ``cell_hi`` supersampled pixels per cell, in the given shades."""
-    img = marker_image(marker_id, cell_hi, dictionary_id)
-    return np.where(img > 127, shades.white, shades.black).astype(np.uint8)
-
-
-def robot_patch(
-    marker_id: int,
-    marker: RobotMarker,
-    body_radius: float,
-    texels_per_cell: int,
-    texels_per_px: float = 1.0,
-    shades: Shades = Shades(),
-    dictionary_id: int = DICTIONARY,
-) -> _Patch:
-    """The top of a robot as a patch: dark disc, round white sticker, marker.
-
-    Centred on the marker; its columns run along the marker's x axis, its rows
-    down the marker's y axis (the marker image as printed). ``texels_per_px``
-    sets the pixel-footprint pre-filter (see :func:`_alpha_patch`).
-    """
-    cells = marker_image(0, 1, dictionary_id).shape[0]
-    cell = marker.size / cells
-    texel = cell / texels_per_cell
-    margin = math.ceil((body_radius - 0.5 * marker.size) / texel) + _PAD
-    n = cells * texels_per_cell + 2 * max(margin, 0)
-    side = n * texel
-    hi = n * _SUPERSAMPLE
-    scale = hi / side  # supersampled pixels per metre
-    centre = 0.5 * hi - 0.5
-    alpha = np.zeros((hi, hi), np.uint8)
-    big = 1 << _SHIFT
-    cv2.circle(
-        alpha,
-        (round(centre * big), round(centre * big)),
-        round(body_radius * scale * big),
-        255,
-        -1,
-        cv2.LINE_AA,
-        _SHIFT,
-    )
-    value = np.full((hi, hi), shades.body, np.uint8)
-    sticker = np.zeros((hi, hi), np.uint8)
-    radius = min(0.5 * marker.sticker_diameter, body_radius)
-    centre_big = round(centre * big)
-    cv2.circle(
-        sticker, (centre_big, centre_big), round(radius * scale * big), 255, -1, cv2.LINE_AA, _SHIFT
-    )
-    value = (value * (1.0 - sticker / 255.0) + shades.white * (sticker / 255.0)).astype(np.uint8)
-    m = _marker_hi(marker_id, texels_per_cell * _SUPERSAMPLE, shades, dictionary_id)
-    start = (hi - m.shape[0]) // 2
-    value[start : start + m.shape[0], start : start + m.shape[0]] = m
-    return _alpha_patch(value, alpha, side, texels_per_px / math.sqrt(12.0))
-
-
-def reference_patch(
-    marker_id: int,
-    texels_per_cell: int,
-    size: float,
-    texels_per_px: float = 1.0,
-    shades: Shades = Shades(),
-    dictionary_id: int = DICTIONARY,
-) -> _Patch:
-    """A reference marker as a patch: the black square with one white cell around it."""
-    cells = marker_image(0, 1, dictionary_id).shape[0]
-    cell_hi = texels_per_cell * _SUPERSAMPLE
-    m = _marker_hi(marker_id, cell_hi, shades, dictionary_id)
-    value = cv2.copyMakeBorder(m, *(cell_hi,) * 4, cv2.BORDER_CONSTANT, value=shades.white)
-    alpha = np.full_like(value, 255)
-    pad = _PAD * _SUPERSAMPLE
-    value = cv2.copyMakeBorder(value, *(pad,) * 4, cv2.BORDER_CONSTANT, value=0)
-    alpha = cv2.copyMakeBorder(alpha, *(pad,) * 4, cv2.BORDER_CONSTANT, value=0)
-    side = size / cells * (cells + 2 + 2 * _PAD / texels_per_cell)
-    return _alpha_patch(value, alpha, side, texels_per_px / math.sqrt(12.0))
 
 
 def _coarse_distortion_map(camera: PinholeCamera, step: int = 8) -> tuple[np.ndarray, np.ndarray]:
@@ -272,7 +153,7 @@ class CameraRenderer:
             self._ideal = camera
             self._map = None
 
-        self._robot_patches: dict[int, _Patch] = {}
+        self._robot_patches: dict[int, Patch] = {}
         self._texels = self._texels_per_cell(marker.size, marker.height)
         # the silhouette: circles at the bottom and the top of the body, around its axis
         a = np.linspace(0.0, 2.0 * math.pi, _CIRCLE_POINTS, endpoint=False)
@@ -303,14 +184,14 @@ class CameraRenderer:
 
     def _draw_solids(self, walls: np.ndarray, circles: np.ndarray, boxes: np.ndarray) -> None:
         """Walls and obstacles into the background: each the hull of its projected outlines."""
-        big = float(1 << _SHIFT)
+        big = float(1 << SHIFT)
         for outline in solid_outlines(walls, circles, boxes):
             px = self._ideal.project(outline)
             if not np.isfinite(px).all():
                 continue  # reaches behind the camera: not drawn
             hull = cv2.convexHull(np.rint(px * big).astype(np.int32))
             cv2.fillConvexPoly(
-                self._ideal_background, hull, self.shades.obstacle, cv2.LINE_AA, _SHIFT
+                self._ideal_background, hull, self.shades.obstacle, cv2.LINE_AA, SHIFT
             )
 
     def _texels_per_cell(self, size: float, z: float) -> tuple[int, float]:
@@ -327,7 +208,7 @@ class CameraRenderer:
         noise = np.clip(noise, -255, 255)
         return np.maximum(noise, 0).astype(np.uint8), np.maximum(-noise, 0).astype(np.uint8)
 
-    def _patch(self, marker_id: int) -> _Patch:
+    def _patch(self, marker_id: int) -> Patch:
         patch = self._robot_patches.get(marker_id)
         if patch is None:
             patch = robot_patch(
@@ -342,7 +223,7 @@ class CameraRenderer:
         return patch
 
     @staticmethod
-    def _blend(canvas: np.ndarray, patch: _Patch, corners_px: np.ndarray) -> None:
+    def _blend(canvas: np.ndarray, patch: Patch, corners_px: np.ndarray) -> None:
         """Warp ``patch`` so its corners land on ``corners_px (4, 2)`` and blend it in."""
         h, w = canvas.shape
         x0 = max(math.floor(float(corners_px[:, 0].min())) - 1, 0)
@@ -435,10 +316,10 @@ class CameraRenderer:
             centres[:, 0], centres[:, 1], headings, self.marker.height, side
         )  # (N, 4, 3)
         px = self._ideal.project(np.concatenate([corners, self._outlines(centres)], axis=1))
-        big = float(1 << _SHIFT)
+        big = float(1 << SHIFT)
         for outline in px[:, 4:]:
             hull = cv2.convexHull(np.rint(outline * big).astype(np.int32))
-            cv2.fillConvexPoly(canvas, hull, self.shades.body, cv2.LINE_AA, _SHIFT)
+            cv2.fillConvexPoly(canvas, hull, self.shades.body, cv2.LINE_AA, SHIFT)
         for marker_id, quad in zip(ids.tolist(), px[:, :4], strict=True):
             self._blend(canvas, self._patch(marker_id), quad)
         return centres
