@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from aes_ros.optim.benchmarks import BENCHMARKS
-from aes_ros.optim.tcacs import default_options, minimize
+from aes_ros.optim.tcacs import minimize
+from aes_ros.optim.tcacs_options import default_options
 
 
 def run(runs: int, max_evals: int) -> list[dict]:

@@ -11,8 +11,9 @@ to ``(k,)`` costs, so the swarm simulator can run all ants (× all Monte-Carlo
 runs) in one kernel call.
 
 Public interface: :func:`minimize` (thin function) over :class:`TCACSSolver`
-(the state machine), the option check :func:`check_options` both share with
-the command line and the paper's options :data:`PAPER_OPTIONS`. The rotated
+(the state machine). Their options, the check both share with the command line
+(:func:`check_options`) and the paper's options (:data:`PAPER_OPTIONS`) are in
+:mod:`aes_ros.optim.tcacs_options` and importable from here too. The rotated
 sampling frame and its spread (steps 5–6) are in :mod:`aes_ros.optim.frame`,
 the standard test functions it
 is validated on are in :mod:`aes_ros.optim.benchmarks`.
@@ -21,24 +22,20 @@ is validated on are in :mod:`aes_ros.optim.benchmarks`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
-from types import MappingProxyType
-from typing import Any
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from scipy.optimize import OptimizeResult
 
-from aes_ros.optim.frame import WEIGHTINGS, fit_frame, spread_weights
-
-#: The paper's options (docs/design.md#tcacs-options), the defaults of :func:`minimize`, of the
-#: tuning and of ``aes-swarm optimize``; also the reference's defaults for n >= 4.
-PAPER_OPTIONS: Mapping[str, Any] = MappingProxyType(
-    {"n_ants": 15, "weighting": "roulette", "gamma": 0.5, "m": 2}
+from aes_ros.optim.frame import fit_frame, spread_weights
+from aes_ros.optim.tcacs_options import (
+    DEFAULT_MAX_EVALS,
+    DEFAULT_TOL,
+    PAPER_OPTIONS,
+    check_bounds,
+    check_options,
+    n_iterations,
 )
-#: The paper's budget of cost evaluations (docs/design.md#tcacs-options).
-DEFAULT_MAX_EVALS = 300
-#: Default spatial convergence radius of the stop rule (docs/design.md#tcacs-step-7).
-DEFAULT_TOL = 1e-4
 
 #: Seeding: retries per seed point before the last draw is accepted anyway (the
 #: reference implementation has no cap and can hang).
@@ -156,69 +153,6 @@ def minimize(
     return solver.solve()
 
 
-def check_options(
-    *,
-    n_ants: int = PAPER_OPTIONS["n_ants"],
-    weighting: str = PAPER_OPTIONS["weighting"],
-    gamma: float = PAPER_OPTIONS["gamma"],
-    m: float = PAPER_OPTIONS["m"],
-    max_evals: int = DEFAULT_MAX_EVALS,
-    tol: float = DEFAULT_TOL,
-    labels: Mapping[str, str] | None = None,
-) -> None:
-    """Check the options of :func:`minimize`; raise ValueError naming the first bad one.
-
-    Options left out take :func:`minimize`'s defaults. ``labels`` renames
-    options in the messages, e.g. ``{"n_ants": "--ants"}`` for a command line;
-    by default an option is called by its parameter name.
-
-    Raises
-    ------
-    ValueError
-        ``"<name>: …"`` when ``n_ants`` is not an integer >= 2, ``max_evals``
-        is not an integer or is less than ``n_ants``, ``weighting`` is not one
-        of :data:`WEIGHTINGS`, ``gamma`` is outside [0, 1], or ``m`` or ``tol``
-        is negative or not finite.
-    """
-    name = {o: o for o in ("n_ants", "weighting", "gamma", "m", "max_evals", "tol")}
-    name.update(labels or {})
-    if isinstance(n_ants, bool) or not isinstance(n_ants, int | np.integer) or n_ants < 2:
-        raise ValueError(f"{name['n_ants']}: {n_ants!r} is not allowed; need an integer >= 2")
-    if isinstance(max_evals, bool) or not isinstance(max_evals, int | np.integer):
-        raise ValueError(f"{name['max_evals']}: {max_evals!r} is not allowed; need an integer")
-    if max_evals < n_ants:
-        raise ValueError(
-            f"{name['max_evals']}: {max_evals} is less than {name['n_ants']} ({n_ants}); "
-            "need at least one iteration of ants"
-        )
-    if weighting not in WEIGHTINGS:
-        raise ValueError(
-            f"{name['weighting']}: {weighting!r} is not allowed; use one of {WEIGHTINGS}"
-        )
-    if not 0.0 <= gamma <= 1.0:
-        raise ValueError(f"{name['gamma']}: {gamma!r} is not allowed; need a number in [0, 1]")
-    if not (m >= 0 and math.isfinite(m)):
-        raise ValueError(f"{name['m']}: {m!r} is not allowed; need a finite number >= 0")
-    if not (tol >= 0 and math.isfinite(tol)):
-        raise ValueError(f"{name['tol']}: {tol!r} is not allowed; need a finite number >= 0")
-
-
-def n_iterations(max_evals: int, n_ants: int) -> int:
-    """Iterations of a run: round(max_evals / n_ants), halves rounded up like the reference."""
-    return max(1, math.floor(max_evals / n_ants + 0.5))
-
-
-def default_options(n: int) -> dict[str, Any]:
-    """The reference's default options for dimension n (docs/design.md#tcacs-reference).
-
-    n < 4: 10 ants, rank weighting, γ = 1, m = 1; n >= 4: :data:`PAPER_OPTIONS`
-    (15 ants, roulette, γ = 0.5, m = 2).
-    """
-    if n < 4:
-        return {"n_ants": 10, "weighting": "rank", "gamma": 1.0, "m": 1}
-    return dict(PAPER_OPTIONS)
-
-
 class TCACSSolver:
     """The TCACS state machine behind :func:`minimize` (same parameters).
 
@@ -243,7 +177,7 @@ class TCACSSolver:
         seed: int | np.random.Generator | None = None,
         callback: Callable[[OptimizeResult], bool | None] | None = None,
     ) -> None:
-        self.lower, self.upper = _check_bounds(bounds)
+        self.lower, self.upper = check_bounds(bounds)
         self.n = len(self.lower)
         check_options(
             n_ants=n_ants, weighting=weighting, gamma=gamma, m=m, max_evals=max_evals, tol=tol
@@ -429,25 +363,3 @@ class TCACSSolver:
             history_fun=hf,
             history_nit=hn,
         )
-
-
-def _check_bounds(bounds: Sequence[tuple[float, float]]) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        b = np.asarray(bounds, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"bounds: {bounds!r} is not a sequence of (low, high) pairs") from None
-    if b.size == 0:
-        raise ValueError("bounds: empty; need one (low, high) pair per variable")
-    if b.ndim != 2 or b.shape[1] != 2:
-        raise ValueError(f"bounds: need a sequence of (low, high) pairs; got shape {b.shape}")
-    if len(b) < 2:
-        raise ValueError("bounds: TCACS needs n >= 2 variables; got n = 1")
-    if not np.isfinite(b).all():
-        raise ValueError("bounds: every low and high must be finite")
-    bad = np.flatnonzero(b[:, 0] >= b[:, 1])
-    if len(bad):
-        i = int(bad[0])
-        raise ValueError(
-            f"bounds: variable {i} has low {b[i, 0]:g} >= high {b[i, 1]:g} (reversed or empty)"
-        )
-    return b[:, 0].copy(), b[:, 1].copy()

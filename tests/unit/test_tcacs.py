@@ -19,13 +19,8 @@ import pytest
 from aes_ros.optim import tcacs
 from aes_ros.optim.benchmarks import BENCHMARKS
 from aes_ros.optim.frame import fit_frame, spread_weights
-from aes_ros.optim.tcacs import (
-    PAPER_OPTIONS,
-    TCACSSolver,
-    check_options,
-    default_options,
-    minimize,
-)
+from aes_ros.optim.tcacs import PAPER_OPTIONS, TCACSSolver, check_options, minimize
+from aes_ros.optim.tcacs_options import default_options
 
 REFERENCE = [name for name, b in BENCHMARKS.items() if b.ref_success is not None]
 
