@@ -10,8 +10,8 @@ break the 1 mm agreement with the ROS system.
 With perception error (:mod:`aes_ros.perception`) a run also keeps the perceived
 frame and the true states of the last D+1 steps. Then it needs two spring
 forces per robot and step, the true one for the metrics and the perceived one
-for the command; it computes both per spring (each spring once, ± on its two
-robots) instead of per robot, so the two cost about what the one did, and it
+for the command; it computes both per spring (:mod:`aes_ros.springs`: each spring
+once, ± on its two robots) instead of per robot, so the two cost about what the one did, and it
 computes the perceived one only when the camera updates (the frame is held in
 between). The ring and the frame hold (x, y, cos θ, sin θ), so a heading's
 cosine and sine are computed once, on the true state. Without perception the

@@ -15,7 +15,7 @@ pybullet's own camera):
 
 - the floor, the reference markers, walls and obstacles never move: drawn once;
 - each robot's top (body, white sticker, marker) is a pre-rendered patch per
-  id, warped by its homography into only its bounding box
+  id (:mod:`sim_bridge.camera_patches`), warped by its homography into only its bounding box
   (``cv2.warpPerspective`` on the ROI) and alpha-blended there;
 - the robots are drawn on an undistorted canvas, then distorted by
   ``cv2.remap`` through a map computed at construction, again only around each
