@@ -95,10 +95,15 @@ def _body_centres(
     """The headings' cos and sin and the body centres [m] of ``pos`` (N, 2) [m] and
     ``head`` (N,) [rad], into the (N,) arrays given."""
     for i in range(head.shape[0]):
-        cos_h[i] = math.cos(head[i])
-        sin_h[i] = math.sin(head[i])
-        body_x[i] = pos[i, 0] + axle_offset * cos_h[i]
-        body_y[i] = pos[i, 1] + axle_offset * sin_h[i]
+        # cos and sin of one local: LLVM then makes them one sincos call (stored as they
+        # are computed, they stayed two calls, 0.7 µs more per step of 100 robots)
+        th = head[i]
+        c = math.cos(th)
+        s = math.sin(th)
+        cos_h[i] = c
+        sin_h[i] = s
+        body_x[i] = pos[i, 0] + axle_offset * c
+        body_y[i] = pos[i, 1] + axle_offset * s
 
 
 @njit(inline="always")
@@ -299,8 +304,11 @@ def advance(
                 )  # fmt: skip
             elif casting:
                 for i in range(N):
-                    ray_c[i] = math.cos(head[i])
-                    ray_s[i] = math.sin(head[i])
+                    th = head[i]
+                    c = math.cos(th)  # locals: one sincos call (see _body_centres)
+                    s = math.sin(th)
+                    ray_c[i] = c
+                    ray_s[i] = s
                 cast_rays(
                     pos, ray_c, ray_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
                     circles, boxes, ranges,
