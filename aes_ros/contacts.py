@@ -56,15 +56,25 @@ def _move(
 
 @njit(cache=True)
 def _separate_listed(
-    positions: np.ndarray, cx: np.ndarray, cy: np.ndarray, radius: float, pairs: np.ndarray
-) -> tuple[int, float]:
+    positions: np.ndarray,
+    cx: np.ndarray,
+    cy: np.ndarray,
+    radius: float,
+    pairs: np.ndarray,
+    reach: float,
+    within: np.ndarray,
+) -> tuple[int, float, int]:
     """One Gauss-Seidel sweep over ``pairs`` in order: each overlapping pair is separated
     in turn, each body moving half the depth along the line of centres, to 2r apart.
-    Returns the overlaps found and the smallest squared centre distance [m²] met (that of
-    the state after the sweep when it found none)."""
+    Returns the overlaps found, the smallest squared centre distance [m²] met (that of
+    the state after the sweep when it found none) and how many pairs it wrote to the
+    first rows of ``within`` (at least as many rows as ``pairs``): those whose centres
+    were closer than ``reach`` [m] when the sweep met them (none for reach 0)."""
     touch = 2.0 * radius
     limit2 = (touch - SLOP) * (touch - SLOP)
+    reach2 = reach * reach
     found = 0
+    kept = 0
     best = np.inf
     for e in range(pairs.shape[0]):
         i = pairs[e, 0]
@@ -74,6 +84,9 @@ def _separate_listed(
         d2 = dx * dx + dy * dy
         if d2 < best:  # not a NaN
             best = d2
+        within[kept, 0] = i  # written always, kept if near: no branch to mispredict
+        within[kept, 1] = j
+        kept += d2 < reach2
         if not d2 < limit2:  # also a NaN
             continue
         found += 1
@@ -87,7 +100,7 @@ def _separate_listed(
         half = 0.5 * (touch - d)
         _move(positions, cx, cy, i, -half * ux, -half * uy)
         _move(positions, cx, cy, j, half * ux, half * uy)
-    return found, best
+    return found, best, kept
 
 
 @njit(cache=True)
@@ -205,29 +218,41 @@ def resolve_listed(
     y_ref: np.ndarray,
     near: float,
     skin: float,
-) -> tuple[int, float, np.ndarray]:
+    reach: float,
+    within: np.ndarray,
+) -> tuple[int, float, np.ndarray, np.ndarray, int]:
     """:func:`resolve_contacts` from the body centres cx, cy (N,) [m] (moved in place with
     the positions) and a candidate list ``pairs`` kept by :func:`kept_pairs` (made at
     ``near``, remade once a centre has moved ``skin`` from x_ref, y_ref; near - 2 skin
-    must be at least CLOSE radii); returns the list to use next, valid for the centres
-    it leaves.
+    must be at least CLOSE radii and ``reach``).
 
     A sweep resolves the overlapping pairs in lexicographic order; every list that holds
     all pairs that can overlap gives the same sweep, so a list kept over steps (the
     simulator's kernel), or one made with a longer reach, gives the bits of a fresh one
     (:func:`resolve_contacts`).
+
+    Returns the contacts and the smallest centre distance (as :func:`resolve_contacts`),
+    the list to use next (valid for the centres it leaves), and, in the first rows of
+    ``within`` (P, 2) int64 (the array given, or a larger one when the list outgrew it),
+    the pairs of that list whose centres are closer than ``reach`` [m] when it is done:
+    as many rows as the last of the five values says, -1 when no sweep met the final
+    state (the last one moved bodies). The IR rays of the offline kernel take their
+    candidates from these, so that a step goes over its list once.
     """
     n = positions.shape[0]
     if n == 0:
-        return 0, np.inf, pairs
+        return 0, np.inf, pairs, within, 0
     contacts = 0
     best = np.inf
+    kept = -1
     settled = False  # a sweep found nothing to move: its distances are the final ones
     for sweep in range(iterations + 1):
         pairs = kept_pairs(cx, cy, pairs, x_ref, y_ref, near, skin)
         if sweep == iterations:
             break  # the last pass only checks the list for the distances below
-        found, best = _separate_listed(positions, cx, cy, radius, pairs)
+        if within.shape[0] < pairs.shape[0]:
+            within = np.empty((pairs.shape[0] + pairs.shape[0] // 2, 2), np.int64)
+        found, best, kept = _separate_listed(positions, cx, cy, radius, pairs, reach, within)
         found += _push_out(positions, cx, cy, radius, walls, circles, boxes)
         if sweep == 0:
             contacts = found
@@ -236,8 +261,9 @@ def resolve_listed(
             break
     if not settled:
         best = _closest(cx, cy, pairs)
+        kept = -1
     close = CLOSE * radius
-    return contacts, (math.sqrt(best) if best < close * close else np.inf), pairs
+    return contacts, (math.sqrt(best) if best < close * close else np.inf), pairs, within, kept
 
 
 @njit(cache=True)
@@ -255,9 +281,9 @@ def resolve_centres(
     if positions.shape[0] == 0:
         return 0, np.inf
     pairs = near_pairs(cx, cy, NEAR * radius)
-    found, closest, _ = resolve_listed(
+    found, closest, _, _, _ = resolve_listed(
         positions, cx, cy, radius, walls, circles, boxes, iterations, pairs, cx.copy(), cy.copy(),
-        NEAR * radius, 0.5 * (NEAR - CLOSE) * radius,
+        NEAR * radius, 0.5 * (NEAR - CLOSE) * radius, 0.0, np.empty_like(pairs),
     )  # fmt: skip
     return found, closest
 
@@ -303,91 +329,6 @@ def resolve_contacts(
     return resolve_centres(positions, cx, cy, radius, walls, circles, boxes, iterations)
 
 
-@njit(cache=True)
-def measure_contacts(
-    positions: np.ndarray,
-    headings: np.ndarray,
-    radius: float,
-    axle_offset: float,
-    walls: np.ndarray,
-    circles: np.ndarray,
-    boxes: np.ndarray,
-    tolerance: float,
-) -> tuple[int, float]:
-    """Contacts in a state, nothing moved: robot pairs, robot-wall and robot-obstacle
-    pairs whose bodies overlap or are within ``tolerance`` [m] of touching, and the
-    smallest robot-robot centre distance [m] if below CLOSE radii (else inf).
-
-    Shapes and units as :func:`resolve_contacts`. After a step with contacts on,
-    bodies pressed together sit at touching distance, so with a tolerance of a
-    micrometre this counts what :func:`resolve_contacts` resolved.
-    """
-    n = positions.shape[0]
-    cx = np.empty(n)
-    cy = np.empty(n)
-    for i in range(n):
-        cx[i] = positions[i, 0] + axle_offset * math.cos(headings[i])
-        cy[i] = positions[i, 1] + axle_offset * math.sin(headings[i])
-    if n == 0:
-        return 0, np.inf
-    reach = 2.0 * radius + tolerance
-    close = CLOSE * radius
-    pairs = near_pairs(cx, cy, max(reach, close))
-    best = _closest(cx, cy, pairs)
-    found = 0
-    for e in range(pairs.shape[0]):
-        dx = cx[pairs[e, 1]] - cx[pairs[e, 0]]
-        dy = cy[pairs[e, 1]] - cy[pairs[e, 0]]
-        if dx * dx + dy * dy <= reach * reach:
-            found += 1
-    for i in range(n):
-        for c in range(circles.shape[0]):
-            if math.hypot(cx[i] - circles[c, 0], cy[i] - circles[c, 1]) <= (
-                circles[c, 2] + radius + tolerance
-            ):
-                found += 1
-        for k in range(boxes.shape[0]):
-            px = min(max(cx[i], boxes[k, 0]), boxes[k, 1])
-            py = min(max(cy[i], boxes[k, 2]), boxes[k, 3])
-            if math.hypot(cx[i] - px, cy[i] - py) <= radius + tolerance:
-                found += 1
-        if walls.shape[0] == 4:
-            lo_x = walls[0] + radius + tolerance
-            hi_x = walls[1] - radius - tolerance
-            lo_y = walls[2] + radius + tolerance
-            hi_y = walls[3] - radius - tolerance
-            if cx[i] <= lo_x or cx[i] >= hi_x or cy[i] <= lo_y or cy[i] >= hi_y:
-                found += 1
-    return found, (math.sqrt(best) if best < close * close else np.inf)
-
-
-#: Gap [m] within which :func:`contacts_over_time` counts bodies as touching.
-TOUCH_TOLERANCE = 1e-6
-
-
-def contacts_over_time(
-    positions: np.ndarray,
-    headings: np.ndarray,
-    radius: float,
-    axle_offset: float,
-    walls: np.ndarray = NO_WALLS,
-    circles: np.ndarray = NO_CIRCLES,
-    boxes: np.ndarray = NO_BOXES,
-) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`measure_contacts` of every state: positions (..., N, 2) [m], headings
-    (..., N) [rad] give contacts (...) and the smallest centre distance (...) [m]."""
-    lead = headings.shape[:-1]
-    pos = np.ascontiguousarray(positions, dtype=float).reshape(-1, *positions.shape[-2:])
-    head = np.ascontiguousarray(headings, dtype=float).reshape(-1, headings.shape[-1])
-    count = np.empty(len(head), np.int64)
-    closest = np.empty(len(head))
-    for s in range(len(head)):
-        count[s], closest[s] = measure_contacts(
-            pos[s], head[s], radius, axle_offset, walls, circles, boxes, TOUCH_TOLERANCE
-        )
-    return count.reshape(lead), closest.reshape(lead)
-
-
 def contact_geometry(
     walls: object = None, circles: object = None, boxes: object = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -403,5 +344,5 @@ def contact_geometry(
 
 # Numba's cache checks this file only: an edit of the candidate lists compiled in from
 # aes_ros.pair_list must compile these again.
-for _compiled in (resolve_listed, resolve_centres, resolve_contacts, measure_contacts):
+for _compiled in (resolve_listed, resolve_centres, resolve_contacts):
     depend_on(_compiled, "aes_ros.pair_list")

@@ -30,9 +30,10 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
-from aes_ros.contacts import CLOSE, resolve_listed
-from aes_ros.ir import cast_rays, cast_rays_listed, mounting
+from aes_ros.avoidance import AVOIDANCE_RANGE
+from aes_ros.contacts import resolve_listed
+from aes_ros.ir import cast_rays, cast_rays_listed
+from aes_ros.kernel_bodies import IR_MOUNT, avoidance_term, body_centres, list_cutoffs, ray_reach
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import kept_pairs
@@ -48,62 +49,6 @@ PARAM_ORDER = (
     "noise_dt", "contacts", "body_radius", "axle_offset", "contact_iterations", "w_o",
     "ir_period_steps",
 )  # fmt: skip
-#: cos and sin of the IR sensors' mounting angles (the avoidance term, aes_ros.avoidance).
-_IR_COS, _IR_SIN = np.cos(IR_ANGLES), np.sin(IR_ANGLES)
-#: The IR sensors' directions in the robot's frame, for the rays (math.cos and math.sin of
-#: the angles, as aes_ros.ir.ray_distances computes them).
-_IR_MOUNT = mounting(IR_ANGLES)
-#: With contacts and the IR rays on, the rays take their candidate pairs from the contact
-#: list, which then holds every pair within the rays' reach (2 r + d_max) plus this margin
-#: [m] (the list's centres and the rays' differ by rounding), and is made again once a
-#: body has moved _IR_LIST_SKIN radii (_CONTACT_LIST_SKIN without the rays). Measured at
-#: 100 robots in the combined scenario: the noise moves bodies about a skin in 3 steps at
-#: 0.5 radii, 7 at 1, so a list made at twice that skin is made less than half as often,
-#: and sweeping its extra pairs costs less than the lists saved; 2 radii were no faster.
-_LIST_MARGIN = 1e-6
-_IR_LIST_SKIN = 1.5
-_CONTACT_LIST_SKIN = 1.0
-
-
-@njit(inline="always")
-def _avoidance(ranges: np.ndarray, i: int, w_o: float, c: float, s: float) -> tuple[float, float]:
-    """The IR repulsion f_o (:func:`aes_ros.avoidance.avoidance_force`) of robot i with
-    ``ranges[i]`` (5,) [m] and heading (cos, sin) = (c, s), world frame (indexed, not a
-    row view: a view per robot and step costs a reference count)."""
-    bx = 0.0
-    by = 0.0
-    for a in range(ranges.shape[1]):
-        if ranges[i, a] < AVOIDANCE_RANGE:
-            push = min(1.0 - ranges[i, a] / AVOIDANCE_RANGE, 1.0)
-            bx += push * _IR_COS[a]
-            by += push * _IR_SIN[a]
-    bx = -w_o * bx
-    by = -w_o * by
-    return c * bx - s * by, s * bx + c * by
-
-
-@njit(cache=True)
-def _body_centres(
-    pos: np.ndarray,
-    head: np.ndarray,
-    axle_offset: float,
-    cos_h: np.ndarray,
-    sin_h: np.ndarray,
-    body_x: np.ndarray,
-    body_y: np.ndarray,
-) -> None:
-    """The headings' cos and sin and the body centres [m] of ``pos`` (N, 2) [m] and
-    ``head`` (N,) [rad], into the (N,) arrays given."""
-    for i in range(head.shape[0]):
-        # cos and sin of one local: LLVM then makes them one sincos call (stored as they
-        # are computed, they stayed two calls, 0.7 µs more per step of 100 robots)
-        th = head[i]
-        c = math.cos(th)
-        s = math.sin(th)
-        cos_h[i] = c
-        sin_h[i] = s
-        body_x[i] = pos[i, 0] + axle_offset * c
-        body_y[i] = pos[i, 1] + axle_offset * s
 
 
 @njit(inline="always")
@@ -117,20 +62,6 @@ def _centroid(points: np.ndarray) -> tuple[float, float]:
         cx += points[i, 0]
         cy += points[i, 1]
     return cx / n, cy / n
-
-
-@njit(inline="always")
-def list_cutoffs(radius: float, sensing: bool) -> tuple[float, float]:
-    """The cutoff ``near`` [m] and skin [m] of the kernel's candidate list of bodies of
-    ``radius`` [m] (:func:`aes_ros.pair_list.kept_pairs`); with the IR rays on
-    (``sensing``) the list holds every pair they can see."""
-    if sensing:
-        keep = max(CLOSE * radius, 2.0 * radius + AVOIDANCE_RANGE) + _LIST_MARGIN
-        skin = _IR_LIST_SKIN * radius
-    else:
-        keep = CLOSE * radius
-        skin = _CONTACT_LIST_SKIN * radius
-    return keep + 2.0 * skin, skin
 
 
 @njit(cache=True, fastmath=False, parallel=True)
@@ -256,6 +187,11 @@ def advance(
         ref_y = np.full(M2, np.inf)
         listed = np.empty((0, 2), np.int64)
         near, skin = list_cutoffs(radius, sensing)
+        # and, with the rays on, the listed pairs close enough for them after the last
+        # step's contacts (in_reach[:n_in_reach]; -1: not known, the rays take the list)
+        reach = ray_reach(radius) if sensing else 0.0
+        in_reach = np.empty((0, 2), np.int64)
+        n_in_reach = -1
         if perceive:
             spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
         for step in range(n_steps):
@@ -293,14 +229,17 @@ def advance(
                     spring_forces(view, ends, spring_stiffness, spring_rest, mutual, seen_force)
             casting = sensing and t % ir_period == 0
             if casting and touching:  # every robot's IR ranges, cast in the true state
+                candidates = listed  # the list the last step's resolve_listed returned
                 if not have_trig:  # no centres and no list yet (this call's first step)
-                    _body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
+                    body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                     have_trig = True
                     listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
-                # else the list the last step's resolve_listed returned, valid for these
+                    candidates = listed
+                elif n_in_reach >= 0:  # ... or those of its pairs the rays can see along
+                    candidates = in_reach[:n_in_reach]
                 cast_rays_listed(
-                    pos, trig_c, trig_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
-                    circles, boxes, listed, ranges, ray_centres,
+                    pos, trig_c, trig_s, radius, axle_offset, IR_MOUNT, AVOIDANCE_RANGE, walls,
+                    circles, boxes, candidates, ranges, ray_centres,
                 )  # fmt: skip
             elif casting:
                 for i in range(N):
@@ -310,7 +249,7 @@ def advance(
                     ray_c[i] = c
                     ray_s[i] = s
                 cast_rays(
-                    pos, ray_c, ray_s, radius, axle_offset, _IR_MOUNT, AVOIDANCE_RANGE, walls,
+                    pos, ray_c, ray_s, radius, axle_offset, IR_MOUNT, AVOIDANCE_RANGE, walls,
                     circles, boxes, ranges,
                 )  # fmt: skip
             sox, soy = ox, oy  # the rotation centre the robots see
@@ -376,7 +315,7 @@ def advance(
                     seen_c = view[i, 2]
                     seen_s = view[i, 3]
                 if sensing:  # avoidance: the robot's own sensors, its true heading
-                    ax, ay = _avoidance(ranges, i, w_o, c, s)
+                    ax, ay = avoidance_term(ranges, i, w_o, c, s)
                     fx += ax
                     fy += ay
                 turn_noise = 0.0
@@ -406,11 +345,11 @@ def advance(
             pos[:, :] = new_pos
             head[:] = new_head
             if touching:  # aes_ros.contacts.resolve_contacts, its centres computed here
-                _body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
+                body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                 have_trig = True
-                found, closest, listed = resolve_listed(
+                found, closest, listed, in_reach, n_in_reach = resolve_listed(
                     pos, body_x, body_y, radius, walls, circles, boxes, iterations,
-                    listed, ref_x, ref_y, near, skin,
+                    listed, ref_x, ref_y, near, skin, reach, in_reach,
                 )  # fmt: skip
                 contact_out[b, step, 0] = found
                 contact_out[b, step, 1] = closest
@@ -419,6 +358,6 @@ def advance(
 # Numba's cache checks this file only: an edit of the contact rule, the rays or the
 # constants compiled in from these modules must compile the kernel again.
 depend_on(
-    advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.metrics",
-    "aes_ros.pair_list", "aes_ros.springs", "aes_ros.xoshiro",
+    advance, "aes_ros.avoidance", "aes_ros.contacts", "aes_ros.ir", "aes_ros.kernel_bodies",
+    "aes_ros.metrics", "aes_ros.pair_list", "aes_ros.springs", "aes_ros.xoshiro",
 )  # fmt: skip

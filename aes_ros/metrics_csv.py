@@ -16,7 +16,7 @@ from typing import IO, Any
 import numpy as np
 
 from aes_ros import metrics
-from aes_ros.contacts import contacts_over_time
+from aes_ros.contact_measures import contacts_over_time
 from aes_ros.model import total_forces
 from aes_ros.mona.geometry import MonaGeometry
 from aes_ros.obstacles import contact_arrays
@@ -48,7 +48,7 @@ def metrics_table(
     sample k is the rigid rotation from k-1 to k (at k = 0: from 0 to 1).
     ``contacts_per_s`` [1/s] is the number of bodies in contact at sample k (robot
     pairs, robots at a wall or an obstacle, overlapping or touching:
-    :func:`aes_ros.contacts.measure_contacts`) over the interval that led to it, so its
+    :func:`aes_ros.contact_measures.measure_contacts`) over the interval that led to it, so its
     mean over a run is the run's contacts per second; ``min_centre_distance`` [m] is the
     smallest distance between two body centres (inf when none are within 3 body radii),
     the least over the runs.

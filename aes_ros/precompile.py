@@ -15,7 +15,8 @@ import time
 import numpy as np
 
 from aes_ros import scenario, simulator
-from aes_ros.contacts import TOUCH_TOLERANCE, contact_geometry, measure_contacts, resolve_contacts
+from aes_ros.contact_measures import TOUCH_TOLERANCE, measure_contacts
+from aes_ros.contacts import contact_geometry, resolve_contacts
 from aes_ros.ir_readings import ir_ranges
 from aes_ros.mona.geometry import MonaGeometry
 

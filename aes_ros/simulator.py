@@ -30,7 +30,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import formations
-from aes_ros.contacts import contacts_over_time
+from aes_ros.contact_measures import contacts_over_time
 from aes_ros.model import Gains
 from aes_ros.obstacles import contact_arrays
 from aes_ros.perception import PerceptionSettings
@@ -62,7 +62,7 @@ class SimResult:
         T·Δt (kept also when not recorded).
     contacts : (B, T+1) bodies in contact at each instant: with ``contacts`` on, the
         overlaps resolved by the step that led to it; off, the overlaps in the state
-        (:func:`aes_ros.contacts.measure_contacts`; at 0 and T only when not recorded,
+        (:func:`aes_ros.contact_measures.measure_contacts`; at 0 and T only when not recorded,
         NaN elsewhere).
     min_distance : (B, T+1) smallest centre distance between two bodies [m], the
         same way: inf when no two are within 3 body radii, NaN where not known.

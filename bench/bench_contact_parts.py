@@ -8,9 +8,10 @@ kernel uses (:func:`aes_ros.kernel.advance`):
 - ``list``: keeping the candidate pairs (:func:`aes_ros.pair_list.kept_pairs`: the test of
   every body's displacement, the rigid follow, the grid made again now and then);
 - ``sweep``: one pass of the contact rule over the list (no overlaps in these runs: the
-  avoidance term keeps the bodies apart, so the kernel sweeps once a step);
-- ``rays``: every robot's five rays against the walls, obstacles and the listed bodies
-  (:func:`aes_ros.ir.cast_rays_listed`).
+  avoidance term keeps the bodies apart, so the kernel sweeps once a step), which also
+  picks the pairs within the rays' reach;
+- ``rays``: every robot's five rays against the walls, obstacles and the bodies of those
+  pairs (:func:`aes_ros.ir.cast_rays_listed`).
 
 Each part's time is that of a loop over the recorded states (their body centres computed
 from the recorded poses) with the part, less that of the same loop without it (best of
@@ -39,7 +40,7 @@ from aes_ros import scenario, simulator
 from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import NO_BOXES, NO_CIRCLES, NO_WALLS, _separate_listed
 from aes_ros.ir import cast_rays_listed, mounting
-from aes_ros.kernel import list_cutoffs
+from aes_ros.kernel_bodies import list_cutoffs, ray_reach
 from aes_ros.pair_list import kept_pairs
 
 #: Bodies and the IR avoidance term as bench_sim.py's contacts+IR row has them.
@@ -61,6 +62,7 @@ def replay(
     checksum so that nothing is left out by the compiler."""
     B, T, n = headings.shape
     mount = mounting(IR_ANGLES)
+    reach = ray_reach(radius)
     out = np.empty((n, 5))
     scratch = np.empty((n, 2))
     total = 0.0
@@ -70,6 +72,7 @@ def replay(
         cx, cy = np.empty(n), np.empty(n)
         ref_x, ref_y = np.full(n, np.inf), np.full(n, np.inf)
         pairs = np.empty((0, 2), np.int64)
+        within = np.empty((0, 2), np.int64)
         for t in range(T):
             for i in range(n):
                 pos[i, 0] = positions[b, t, i, 0]
@@ -82,13 +85,16 @@ def replay(
             if parts >= 1:
                 pairs = kept_pairs(cx, cy, pairs, ref_x, ref_y, near, skin)
                 total += pairs.shape[0]
+            if within.shape[0] < pairs.shape[0]:
+                within = np.empty((2 * pairs.shape[0], 2), np.int64)
+            kept = pairs.shape[0]
             if parts >= 2:
-                found, best = _separate_listed(pos, cx, cy, radius, pairs)
+                found, best, kept = _separate_listed(pos, cx, cy, radius, pairs, reach, within)
                 total += found + best
             if parts >= 3:
                 cast_rays_listed(
                     pos, cos_h, sin_h, radius, axle_offset, mount, AVOIDANCE_RANGE, NO_WALLS,
-                    NO_CIRCLES, NO_BOXES, pairs, out, scratch,
+                    NO_CIRCLES, NO_BOXES, within[:kept], out, scratch,
                 )  # fmt: skip
                 total += out[t % n, 0]
     return total

@@ -8,7 +8,7 @@ direction, the metrics ψ (E8), ψ_heading (E7) and F (E9), and a status line. T
 forces are those of E4 with the dashboard's gains and the supervisor's command,
 computed with :mod:`aes_ros.model`, as the supervisor does. The scenario's walls and
 obstacles go with the sheet; the bodies' contacts per second and smallest centre
-distance are measured in the poses received (:func:`aes_ros.contacts.measure_contacts`).
+distance are measured in the poses received (:func:`aes_ros.contact_measures.measure_contacts`).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from aes_ros.contacts import TOUCH_TOLERANCE, measure_contacts
+from aes_ros.contact_measures import TOUCH_TOLERANCE, measure_contacts
 from aes_ros.formations import spring_pairs
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.model import Gains, SwarmCommand, total_forces

@@ -21,7 +21,7 @@ The scenario's walls and obstacles are static bodies (:mod:`sim_bridge.arena`). 
 
 Either way :attr:`World.last_contacts` gives the contacts of the last step and the
 smallest robot-robot centre distance after it (resolved, or measured as
-:func:`aes_ros.contacts.measure_contacts` counts them).
+:func:`aes_ros.contact_measures.measure_contacts` counts them).
 
 A robot's pose is that of its ``base_link`` (:mod:`sim_bridge.mona`): the
 ground point under the axle midpoint, ``(x, y)`` [m; odom] and yaw θ [rad].
@@ -40,13 +40,8 @@ from pathlib import Path
 import numpy as np
 import pybullet as pb
 
-from aes_ros.contacts import (
-    ITERATIONS,
-    TOUCH_TOLERANCE,
-    contact_geometry,
-    measure_contacts,
-    resolve_contacts,
-)
+from aes_ros.contact_measures import TOUCH_TOLERANCE, measure_contacts
+from aes_ros.contacts import ITERATIONS, contact_geometry, resolve_contacts
 from aes_ros.frames import yaw_from_quaternion
 from aes_ros.model import clip_commands, unicycle_step, wrap_angle
 from aes_ros.ros.interface import MODES

@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from aes_ros import scenario
-from aes_ros.contacts import TOUCH_TOLERANCE
+from aes_ros.contact_measures import TOUCH_TOLERANCE
 from aes_ros.simulator import BODY, SimResult, simulate
 from aes_ros.studies.common import Where, write_csv
 

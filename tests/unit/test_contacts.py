@@ -14,6 +14,7 @@ from aes_ros.pair_list import near_pairs
 R = MonaGeometry().body_radius
 A = MonaGeometry().axle_offset
 MM = 1e-3
+NO_PAIRS = np.empty((0, 2), np.int64)
 
 
 def centres(positions: np.ndarray, headings: np.ndarray) -> np.ndarray:
@@ -134,7 +135,8 @@ def test_bad_walls_are_refused() -> None:
 def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one(near: float, skin: float) -> None:
     """The kernel keeps its candidate pairs over steps (resolve_listed), longer ones when
     the IR rays use them too; the bridge calls resolve_contacts, which makes them afresh:
-    both must move the robots alike, bit for bit."""
+    both must move the robots alike, bit for bit. The pairs it hands to the rays are every
+    pair closer than their reach after the step, no more."""
     rng = np.random.default_rng(5)
     pos = rng.uniform(-0.4, 0.4, (60, 2))
     head = rng.uniform(-math.pi, math.pi, 60)
@@ -150,12 +152,49 @@ def test_a_list_kept_over_steps_gives_the_bits_of_a_fresh_one(near: float, skin:
         cx = kept[:, 0] + A * np.cos(head)
         cy = kept[:, 1] + A * np.sin(head)
         before = pairs
-        k1, d1, pairs = resolve_listed(kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, near, skin)
+        k1, d1, pairs, _, _ = resolve_listed(
+            kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, near, skin, 0.0, NO_PAIRS
+        )
         rebuilt += pairs is not before
         k2, d2 = resolve_contacts(fresh, head, R, A, w, c, b, 8)
         assert (k1, d1) == (k2, d2)
         assert kept.tobytes() == fresh.tobytes()
     assert 1 < rebuilt < 100  # the list was kept for some steps and remade for others
+
+
+def test_the_pairs_handed_to_the_rays_are_those_within_their_reach() -> None:
+    """With the IR rays on, the kernel's rays take their candidate pairs from the contact
+    sweep that settled a step: every pair whose centres are closer than the rays' reach
+    after the contacts, no more; none when no sweep met the final state."""
+    rng = np.random.default_rng(6)
+    pos = rng.uniform(-0.6, 0.6, (24, 2))
+    head = rng.uniform(-math.pi, math.pi, 24)
+    w, c, b = contact_geometry((-0.8, 0.8, -0.8, 0.8))
+    near, skin, reach = 0.3, 0.06, 0.18
+    ref_x, ref_y = np.full(24, np.inf), np.full(24, np.inf)
+    pairs, within = np.empty((0, 2), np.int64), np.empty((0, 2), np.int64)
+    i, j = np.triu_indices(24, 1)
+    handed = touched = calm = 0
+    for _ in range(50):
+        pos += 0.004 * np.stack([np.cos(head), np.sin(head)], -1)
+        cx = pos[:, 0] + A * np.cos(head)
+        cy = pos[:, 1] + A * np.sin(head)
+        found, _, pairs, within, n_within = resolve_listed(
+            pos, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, near, skin, reach, within
+        )
+        if n_within < 0:
+            continue
+        handed += 1
+        touched += found > 0
+        calm += found == 0
+        dx, dy = cx[j] - cx[i], cy[j] - cy[i]
+        close = dx * dx + dy * dy < reach * reach
+        np.testing.assert_array_equal(within[:n_within], np.stack([i[close], j[close]], 1))
+    assert handed > 40 and touched > 5 and calm > 5  # most settle, some after contacts
+    _, _, _, _, n_within = resolve_listed(  # one sweep for a jam: the final state unmet
+        pos, cx, cy, 1.0, w, c, b, 1, pairs, ref_x, ref_y, near, skin, reach, within
+    )
+    assert n_within == -1
 
 
 def test_robots_far_apart_or_not_finite_are_handled() -> None:
@@ -211,9 +250,10 @@ def test_a_list_follows_a_swarm_that_turns_and_drives_as_a_body() -> None:
         cx = kept[:, 0] + A * np.cos(head)
         cy = kept[:, 1] + A * np.sin(head)
         before = pairs
-        k1, d1, pairs = resolve_listed(
-            kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, NEAR * R, 0.5 * (NEAR - CLOSE) * R
-        )
+        k1, d1, pairs, _, _ = resolve_listed(
+            kept, cx, cy, R, w, c, b, 8, pairs, ref_x, ref_y, NEAR * R,
+            0.5 * (NEAR - CLOSE) * R, 0.0, NO_PAIRS,
+        )  # fmt: skip
         made += pairs is not before
         k2, d2 = resolve_contacts(fresh, head, R, A, w, c, b, 8)
         assert (k1, d1) == (k2, d2)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aes_ros import scenario, simulator
-from aes_ros.contacts import contacts_over_time
+from aes_ros.contact_measures import contacts_over_time
 from aes_ros.metrics_csv import OLD_COLUMNS, metrics_table, read_metrics_csv
 from aes_ros.obstacles import contact_arrays
 
