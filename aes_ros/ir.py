@@ -66,24 +66,31 @@ def _cell_grid(
     centres: np.ndarray, cell: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int]:
     """Bodies sorted by square cell of side ``cell`` (wider when they are spread over more
-    than about 8 N cells): (order, start of each cell in order, each body's cell, nx, ny)."""
+    than about 8 N cells): (order, start of each cell in order, each body's cell, nx, ny).
+    A body whose centre is NaN is in no cell (its cell is -1)."""
     n = len(centres)
-    x0, y0 = centres[:, 0].min(), centres[:, 1].min()
-    w, h = centres[:, 0].max() - x0, centres[:, 1].max() - y0
+    x0, y0, x1, y1 = math.inf, math.inf, -math.inf, -math.inf
+    for i in range(n):
+        if centres[i, 0] == centres[i, 0]:  # not NaN (_cast_static made non-finite ones NaN)
+            x0, x1 = min(x0, centres[i, 0]), max(x1, centres[i, 0])
+            y0, y1 = min(y0, centres[i, 1]), max(y1, centres[i, 1])
+    w, h = max(x1 - x0, 0.0), max(y1 - y0, 0.0)  # 0 when none is finite
     side = max(cell, math.sqrt(w * h / (4.0 * n + 16.0)), (w + h) / (4.0 * n + 16.0))
     nx, ny = int(w / side) + 1, int(h / side) + 1
-    of = np.empty(n, dtype=np.int64)
+    of = np.full(n, -1, dtype=np.int64)
     start = np.zeros(nx * ny + 1, dtype=np.int64)
     for i in range(n):
-        of[i] = int((centres[i, 0] - x0) / side) * ny + int((centres[i, 1] - y0) / side)
-        start[of[i] + 1] += 1
+        if centres[i, 0] == centres[i, 0]:
+            of[i] = int((centres[i, 0] - x0) / side) * ny + int((centres[i, 1] - y0) / side)
+            start[of[i] + 1] += 1
     for c in range(nx * ny):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
     order = np.empty(n, dtype=np.int64)
     for i in range(n):
-        order[fill[of[i]]] = i
-        fill[of[i]] += 1
+        if of[i] >= 0:
+            order[fill[of[i]]] = i
+            fill[of[i]] += 1
     return order, start, of, nx, ny
 
 
@@ -104,7 +111,9 @@ def ray_distances(
 
     positions : (N, 2) pose points [m; odom]; headings : (N,) [rad]; angles : (K,) mounting
     angles [rad]; walls : (4,) x_min, x_max, y_min, y_max or (0,); circles : (M, 3) x, y, r;
-    boxes : (L, 4) x_min, x_max, y_min, y_max. A distance is in [0, max_range].
+    boxes : (L, 4) x_min, x_max, y_min, y_max. A distance is in [0, max_range]. A robot
+    whose pose is not finite (a simulated run that diverged) reads max_range on every sensor
+    and is seen by no other robot.
     """
     n = len(headings)
     cos_h, sin_h = np.empty(n), np.empty(n)
@@ -159,6 +168,8 @@ def cast_rays(
     behind = _blind_behind(mount, body_radius)
     order, start, of, nx, ny = _cell_grid(centres, reach)  # neighbours within 3 x 3 cells
     for i in range(n):
+        if of[i] < 0:  # not finite: sees nothing
+            continue
         cx, cy = centres[i, 0], centres[i, 1]
         ci, cj = of[i] // ny, of[i] % ny
         lo, hi = max(cj - 1, 0), min(cj + 1, ny - 1)
@@ -262,12 +273,17 @@ def _cast_static(
         centres[i, 0] = positions[i, 0] + axle_offset * cos_h[i]
         centres[i, 1] = positions[i, 1] + axle_offset * sin_h[i]
         nan_if_not_finite += 0.0 * centres[i, 0] + 0.0 * centres[i, 1]
-    if nan_if_not_finite != 0.0:
-        raise ValueError("ray_distances: positions and headings must be finite")
     out[:, :] = max_range
+    if nan_if_not_finite != 0.0:  # a run that diverged: its lost robots become NaN centres,
+        for i in range(n):  # which every distance test skips (they see and are seen by none)
+            if not (math.isfinite(centres[i, 0]) and math.isfinite(centres[i, 1])):
+                centres[i, 0] = math.nan
+                centres[i, 1] = math.nan
     if not (len(walls) == 4 or len(circles) > 0 or len(boxes) > 0):
         return
     for i in range(n):
+        if centres[i, 0] != centres[i, 0]:  # NaN: not finite, reads nothing
+            continue
         for a in range(k):
             sx, sy, ux, uy = _ray(i, a, centres, cos_h, sin_h, mount, body_radius)
             best = max_range
@@ -329,7 +345,7 @@ def cast_rays_listed(
     for e in range(pairs.shape[0]):
         i, j = pairs[e, 0], pairs[e, 1]
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
-        if dx * dx + dy * dy >= reach2:
+        if not dx * dx + dy * dy < reach2:  # also a NaN centre
             continue
         _see_robot(i, j, centres, cos_h, sin_h, mount, body_radius, behind, out)
         _see_robot(j, i, centres, cos_h, sin_h, mount, body_radius, behind, out)

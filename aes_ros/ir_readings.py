@@ -101,7 +101,9 @@ def ir_ranges(
 
     Returns
     -------
-    (N, 5) readings; a sensor that sees nothing reads ``max_range``.
+    (N, 5) readings; a sensor that sees nothing reads ``max_range``, and so does every
+    sensor of a robot whose pose is not finite (a simulated run that diverged), which no
+    other robot sees.
     """
     g = geometry or MonaGeometry()
     positions = np.ascontiguousarray(positions, dtype=float).reshape(-1, 2)

@@ -4,6 +4,7 @@ without touching them, where without the term every run touches them."""
 
 from __future__ import annotations
 
+import dataclasses
 from importlib import resources
 
 import numpy as np
@@ -75,3 +76,23 @@ def test_ir_readings_are_held_between_casts_alike_in_both_backends() -> None:
         np.testing.assert_allclose(fast.positions, plain.positions, rtol=0, atol=1e-9)
         runs[name] = fast.positions
     assert np.abs(runs["every step"] - runs["every fifth"]).max() > 1e-3
+
+
+def test_a_run_that_diverges_with_the_term_on_goes_on_as_nan_alone() -> None:
+    """Gains at the top of their ranges make the combined sheet blow up; with the IR term
+    on, that run must end as NaN, as it does without the term, in both backends, and the
+    stable run beside it in the batch must be the run it is alone (not a crash of the whole
+    batch, as when the rays refused non-finite poses)."""
+    sc = scenario.load("combined", {"duration": 15.0, "w_o": 4.0})
+    wild = dataclasses.replace(sc.gains, alpha=10.0, beta=10.0, k=10.0)
+    runs = {
+        backend: simulate(sc, seeds=[5, 6], gains=[sc.gains, wild], backend=backend)
+        for backend in ("numba", "numpy")
+    }
+    fast, slow = runs["numba"], runs["numpy"]
+    assert not np.isfinite(fast.final_positions[1]).all()
+    assert not np.isfinite(slow.final_positions[1]).all()
+    np.testing.assert_allclose(fast.positions[0], slow.positions[0], rtol=0, atol=1e-9)
+    alone = simulate(sc, seeds=[5], backend="numba")
+    np.testing.assert_array_equal(fast.positions[0], alone.positions[0])
+    assert np.isfinite(fast.positions[0]).all()

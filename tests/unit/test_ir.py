@@ -178,10 +178,19 @@ def test_rays_from_the_kernels_cosines_are_the_rays_from_headings():
     assert (a < MAX).sum() > 50
 
 
-def test_non_finite_poses_are_refused():
-    with pytest.raises(ValueError, match="finite"):
-        ir_ranges([[0.0, 0.0], [math.nan, 0.0]], [0.0, 0.0])
+def test_a_robot_lost_to_a_diverged_run_sees_nothing_and_is_not_seen():
+    """A run whose gains diverge ends with robots at NaN or inf: they read nothing and are
+    invisible, and the others read what they would read without them."""
+    walls = (-1.0, 1.0, -1.0, 1.0)
+    finite = np.array([[0.0, 0.0], [0.12, 0.0]])  # robot 1 right ahead of robot 0
+    alone = ir_ranges(finite, [0.0, 0.0], walls=walls, circles=[(0.0, 0.5, 0.1)])
+    for lost in ([math.nan, 0.0], [math.inf, 0.0], [0.05, -math.inf]):
+        poses = np.array([finite[0], lost, finite[1]])
+        got = ir_ranges(poses, [0.0, 0.3, 0.0], walls=walls, circles=[(0.0, 0.5, 0.1)])
+        np.testing.assert_array_equal(got[[0, 2]], alone)
+        np.testing.assert_array_equal(got[1], np.full(5, MAX))
     assert ir_ranges(np.zeros((0, 2)), np.zeros(0)).shape == (0, 5)
+    assert (ir_ranges([[math.nan, 0.0]], [math.nan]) == MAX).all()
 
 
 def test_the_kernel_is_callable_from_numba_code():
