@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit
 
-from aes_ros.contacts import CLOSE, NO_BOXES, NO_CIRCLES, NO_WALLS, _closest
+from aes_ros.contacts import CLOSE, NO_BOXES, NO_CIRCLES, NO_WALLS, _closest, body_centres
 from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import near_pairs
 
@@ -33,16 +33,12 @@ def measure_contacts(
     pairs whose bodies overlap or are within ``tolerance`` [m] of touching, and the
     smallest robot-robot centre distance [m] if below CLOSE radii (else inf).
 
-    Shapes and units as :func:`aes_ros.contacts.resolve_contacts`. After a step with contacts on,
-    bodies pressed together sit at touching distance, so with a tolerance of a
-    micrometre this counts what :func:`aes_ros.contacts.resolve_contacts` resolved.
+    Shapes and units as :func:`aes_ros.contacts.resolve_contacts`. After a step with
+    contacts on, bodies pressed together sit at touching distance, so with a tolerance of
+    a micrometre this counts what :func:`aes_ros.contacts.resolve_contacts` resolved.
     """
     n = positions.shape[0]
-    cx = np.empty(n)
-    cy = np.empty(n)
-    for i in range(n):
-        cx[i] = positions[i, 0] + axle_offset * math.cos(headings[i])
-        cy[i] = positions[i, 1] + axle_offset * math.sin(headings[i])
+    cx, cy = body_centres(positions, headings, axle_offset)
     if n == 0:
         return 0, np.inf
     reach = 2.0 * radius + tolerance

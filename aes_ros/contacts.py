@@ -320,13 +320,23 @@ def resolve_contacts(
         inf for one robot and when no two centres are within CLOSE = 3 radii (nothing
         near a contact).
     """
+    cx, cy = body_centres(positions, headings, axle_offset)
+    return resolve_centres(positions, cx, cy, radius, walls, circles, boxes, iterations)
+
+
+@njit(cache=True)
+def body_centres(
+    positions: np.ndarray, headings: np.ndarray, axle_offset: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The body centres cx, cy (N,) [m] of pose points ``positions`` (N, 2) [m] and
+    ``headings`` (N,) [rad]: ``axle_offset`` [m] ahead of each pose point."""
     n = positions.shape[0]
     cx = np.empty(n)
     cy = np.empty(n)
     for i in range(n):
         cx[i] = positions[i, 0] + axle_offset * math.cos(headings[i])
         cy[i] = positions[i, 1] + axle_offset * math.sin(headings[i])
-    return resolve_centres(positions, cx, cy, radius, walls, circles, boxes, iterations)
+    return cx, cy
 
 
 def contact_geometry(
