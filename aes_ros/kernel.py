@@ -31,9 +31,9 @@ import numpy as np
 from numba import njit, prange
 
 from aes_ros.avoidance import AVOIDANCE_RANGE
-from aes_ros.contacts import resolve_listed
+from aes_ros.contacts import fill_body_centres, resolve_listed
 from aes_ros.ir import cast_rays, cast_rays_listed
-from aes_ros.kernel_bodies import IR_MOUNT, avoidance_term, body_centres, list_cutoffs, ray_reach
+from aes_ros.kernel_bodies import IR_MOUNT, avoidance_term, list_cutoffs, ray_reach
 from aes_ros.metrics import FORCE_EPS
 from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import kept_pairs
@@ -231,7 +231,7 @@ def advance(
             if casting and touching:  # every robot's IR ranges, cast in the true state
                 candidates = listed  # the list the last step's resolve_listed returned
                 if not have_trig:  # no centres and no list yet (this call's first step)
-                    body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
+                    fill_body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                     have_trig = True
                     listed = kept_pairs(body_x, body_y, listed, ref_x, ref_y, near, skin)
                     candidates = listed
@@ -244,7 +244,7 @@ def advance(
             elif casting:
                 for i in range(N):
                     th = head[i]
-                    c = math.cos(th)  # locals: one sincos call (see _body_centres)
+                    c = math.cos(th)  # locals: one sincos call (see contacts.fill_body_centres)
                     s = math.sin(th)
                     ray_c[i] = c
                     ray_s[i] = s
@@ -345,7 +345,7 @@ def advance(
             pos[:, :] = new_pos
             head[:] = new_head
             if touching:  # aes_ros.contacts.resolve_contacts, its centres computed here
-                body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
+                fill_body_centres(pos, head, axle_offset, trig_c, trig_s, body_x, body_y)
                 have_trig = True
                 found, closest, listed, in_reach, n_in_reach = resolve_listed(
                     pos, body_x, body_y, radius, walls, circles, boxes, iterations,

@@ -1,14 +1,12 @@
 """What the fused kernel (:mod:`aes_ros.kernel`) adds to a step for bodies and the IR rays.
 
-The body centres and the headings' cosines and sines after a step, the cut-offs of the
-candidate list the contacts and the rays share, and the IR avoidance term of one robot, all
-numba functions the kernel calls; the rule itself lives in :mod:`aes_ros.contacts`, the rays
-in :mod:`aes_ros.ir`, the term's definition in :mod:`aes_ros.avoidance`.
+The cut-offs of the candidate list the contacts and the rays share, the rays' reach, the
+sensors' directions and the IR avoidance term of one robot, all numba code the kernel calls;
+the contact rule (and the body centres) live in :mod:`aes_ros.contacts`, the rays in
+:mod:`aes_ros.ir`, the term's definition in :mod:`aes_ros.avoidance`.
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import njit
@@ -25,11 +23,11 @@ IR_MOUNT = mounting(IR_ANGLES)
 #: With contacts and the IR rays on, the rays take their candidate pairs from the contact
 #: list (those its last sweep found within reach), which then holds every pair within the
 #: rays' reach (2 r + d_max) plus this margin [m] (the sweep's centres and the rays'
-#: differ by rounding), and is made again once a
-#: body has moved _IR_LIST_SKIN radii (_CONTACT_LIST_SKIN without the rays). Measured at
-#: 100 robots in the combined scenario: the noise moves bodies about a skin in 3 steps at
-#: 0.5 radii, 7 at 1, so a list made at twice that skin is made less than half as often,
-#: and sweeping its extra pairs costs less than the lists saved; 2 radii were no faster.
+#: differ by rounding), and is made again once a body has moved _IR_LIST_SKIN radii
+#: (_CONTACT_LIST_SKIN without the rays). Measured at 100 robots in the combined scenario:
+#: the noise moves bodies about a skin in 3 steps at 0.5 radii, 7 at 1, so a list made at
+#: twice that skin is made less than half as often, and sweeping its extra pairs costs less
+#: than the lists saved; 2 radii were no faster.
 LIST_MARGIN = 1e-6
 _IR_LIST_SKIN = 1.5
 _CONTACT_LIST_SKIN = 1.0
@@ -52,30 +50,6 @@ def avoidance_term(
     bx = -w_o * bx
     by = -w_o * by
     return c * bx - s * by, s * bx + c * by
-
-
-@njit(cache=True)
-def body_centres(
-    pos: np.ndarray,
-    head: np.ndarray,
-    axle_offset: float,
-    cos_h: np.ndarray,
-    sin_h: np.ndarray,
-    body_x: np.ndarray,
-    body_y: np.ndarray,
-) -> None:
-    """The headings' cos and sin and the body centres [m] of ``pos`` (N, 2) [m] and
-    ``head`` (N,) [rad], into the (N,) arrays given."""
-    for i in range(head.shape[0]):
-        # cos and sin of one local: LLVM then makes them one sincos call (stored as they
-        # are computed, they stayed two calls, 0.7 µs more per step of 100 robots)
-        th = head[i]
-        c = math.cos(th)
-        s = math.sin(th)
-        cos_h[i] = c
-        sin_h[i] = s
-        body_x[i] = pos[i, 0] + axle_offset * c
-        body_y[i] = pos[i, 1] + axle_offset * s
 
 
 @njit(inline="always")
