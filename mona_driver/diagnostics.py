@@ -16,9 +16,15 @@ STATUS_PREFIX = "mona_driver: "
 
 
 def link_status(
-    link: RobotLink, now: float, *, silent_after: float, hello_after: float
+    link: RobotLink,
+    now: float,
+    *,
+    silent_after: float,
+    hello_after: float,
+    refuse_other: bool = True,
 ) -> DiagnosticStatus:
-    """The status of one robot's link."""
+    """The status of one robot's link (``refuse_other``: a robot that says another id
+    is not driven, an error; else a warning)."""
     s = link.stats
     up = link.is_up(now, silent_after)
     state = "up" if up else ("silent" if link.transport.is_open else "down")
@@ -31,6 +37,10 @@ def link_status(
     level = DiagnosticStatus.OK
     if problems:
         level = DiagnosticStatus.ERROR if not link.transport.is_open else DiagnosticStatus.WARN
+    other = link.other_robot()
+    if other is not None:
+        problems.append(f"the robot says it is {other}" + (": not driven" if refuse_other else ""))
+        level = DiagnosticStatus.ERROR if refuse_other else max(level, DiagnosticStatus.WARN)
     hello = link.hello
     values = {
         "link": state,

@@ -12,6 +12,7 @@ or opened at start ends the driver with exit code 2 and the reason.
 from __future__ import annotations
 
 import math
+import os
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -55,6 +56,9 @@ class MonaDriverNode(Node):
     - ``hello_timeout`` (double, s, default 3.0): how long a serial link that opened
       waits for the robot's HELLO before WHEELS and PING go out; a robot without one
       by then is reported (and driven).
+    - ``check_robot_id`` (bool, default true): a robot whose HELLO names another robot
+      id gets nothing (no WHEELS, PING or STOP) until it names the link's; false drives
+      it anyway (robots whose EEPROM id was never set all say the build's id).
     - ``odom_frame``, ``base_frame``, ``ir_frame`` (string, ``{id}`` and ``{k}`` are
       replaced): frames of wheel odometry and IR ranges.
     - ``ir_gain`` (m·counts, 10.0), ``ir_offset`` (counts, 50.0), ``ir_min_range`` (m,
@@ -98,6 +102,7 @@ class MonaDriverNode(Node):
         self._next_ping = now
         self.create_timer(1.0 / self.get_parameter("poll_rate_hz").value, self.on_poll)
         self.create_timer(1.0, self.on_diagnostics)
+        self.create_timer(1.0, self.on_device_check)
         udp = f", UDP port {hub.port}" if hub is not None else ""
         self.get_logger().info(
             f"{names.MONA_DRIVER_READY} {len(links)} robots "
@@ -112,6 +117,11 @@ class MonaDriverNode(Node):
             ("ping_period", 1.0, fd("time between PINGs", "s", 0.1, 60.0, read_only=True)),
             ("silent_after", 1.0, fd("no valid frame this long: silent", "s", 0.1, 60.0)),
             ("hello_timeout", 3.0, fd("no HELLO this long: reported", "s", 0.1, 600.0)),
+            (
+                "check_robot_id",
+                True,
+                rp.bool_descriptor("send nothing to a robot whose HELLO names another id"),
+            ),
             ("odom_frame", "mona_{id}/odom", text("frame of wheel_odom ({id}: robot id)")),
             ("base_frame", "mona_{id}/base_link", text("the robot's body frame")),
             ("ir_frame", "mona_{id}/ir_{k}", text("frame of IR sensor k")),
@@ -200,6 +210,8 @@ class MonaDriverNode(Node):
             # a robot stops saying HELLO at its first valid frame: let it say it first
             # (a WHEELS held back here goes out from on_poll if still fresh)
             return
+        if link.other_robot() is not None and self.get_parameter("check_robot_id").value:
+            return  # another robot's: not ours to drive, nor to stop
         if link.transport.is_open:
             reason = link.send(msg, now)
             if reason is not None:
@@ -230,6 +242,16 @@ class MonaDriverNode(Node):
             self._next_ping = now + self.ping_period
             for link in self.links:
                 self._send(link, Ping(), now)
+
+    def on_device_check(self) -> None:
+        """Reopen a serial link whose device path now leads to another device (once a
+        second: resolving a path costs system calls)."""
+        now = time.monotonic()
+        for link in self.links:
+            port = link.transport
+            if isinstance(port, SerialPort) and port.moved():
+                link.drop(f"{link.spec.device} now leads to {os.path.realpath(port.device)}", now)
+                self.warn(f"link of mona_{link.robot_id} moved: {link.stats.last_error}; reopening")
 
     def _poll_serial(self, link: RobotLink, now: float) -> None:
         port = link.transport
@@ -270,10 +292,13 @@ class MonaDriverNode(Node):
             f"{hello.fw_major}.{hello.fw_minor}, robot id {hello.robot_id}"
         )
         if hello.robot_id != link.robot_id:
+            refused = self.get_parameter("check_robot_id").value
             self.warn(
                 f"mona_{link.robot_id} id mismatch: the robot on {link.spec} says it is "
-                f"{hello.robot_id}; its topics stay those of {link.robot_id}"
-            )
+                f"{hello.robot_id}; "
+                + ("nothing is sent to it (check_robot_id:=false drives it anyway)" if refused
+                   else f"driven as mona_{link.robot_id} (check_robot_id is false)")
+            )  # fmt: skip
 
     # ----------------------------------------------------------------- telemetry
 
@@ -326,7 +351,13 @@ class MonaDriverNode(Node):
         silent = float(self.get_parameter("silent_after").value)
         hello_after = float(self.get_parameter("hello_timeout").value)
         statuses = [
-            link_status(link, now, silent_after=silent, hello_after=hello_after)
+            link_status(
+                link,
+                now,
+                silent_after=silent,
+                hello_after=hello_after,
+                refuse_other=self.get_parameter("check_robot_id").value,
+            )
             for link in self.links
         ]
         for link, status in zip(self.links, statuses, strict=True):

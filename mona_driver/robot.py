@@ -83,6 +83,7 @@ class RobotLink:
             return self.stats.last_error
         self.reader = FrameReader()
         self.received.reset()
+        self.hello = None  # a reopened device may be another robot: it says HELLO anew
         self.opened_at = now
         self._backoff = BACKOFF_FIRST
         return None
@@ -153,6 +154,13 @@ class RobotLink:
         if isinstance(msg, Pong) and msg.ack_seq in self._pings:
             self.stats.rtt = now - self._pings.pop(msg.ack_seq)
         return msg
+
+    def other_robot(self) -> int | None:
+        """The robot id this link's robot said in its HELLO if it is not the link's
+        (None: the link's, or no HELLO yet)."""
+        if self.hello is not None and self.hello.robot_id != self.robot_id:
+            return self.hello.robot_id
+        return None
 
     def awaits_hello(self, now: float, hello_after: float) -> bool:
         """A serial link opened less than ``hello_after`` s ago whose robot has not said

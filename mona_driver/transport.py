@@ -29,6 +29,7 @@ class SerialPort:
         self.device = device
         self.baud = baud
         self.fd: int | None = None
+        self.opened_path = ""  #: the device ``device`` led to when it opened (symlinks followed)
 
     @property
     def is_open(self) -> bool:
@@ -37,7 +38,8 @@ class SerialPort:
     def open(self) -> None:
         """Open and configure the device; ``OSError`` says why it cannot be."""
         self.close()
-        fd = os.open(self.device, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        path = os.path.realpath(self.device)
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
         try:
             if not os.isatty(fd):
                 raise OSError(errno.ENOTTY, "not a serial device (a terminal)", self.device)
@@ -56,6 +58,13 @@ class SerialPort:
             os.close(fd)
             raise
         self.fd = fd
+        self.opened_path = path
+
+    def moved(self) -> bool:
+        """Open, and ``device`` now leads elsewhere: a symlink moved to another device (a
+        ``/dev/serial/by-id`` link after a replug, the firmware loop's link to a restarted
+        MCU), so the open one may be another robot's, or nobody's."""
+        return self.fd is not None and os.path.realpath(self.device) != self.opened_path
 
     def close(self) -> None:
         if self.fd is not None:

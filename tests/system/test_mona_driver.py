@@ -279,6 +279,61 @@ def test_sigterm_and_ctrl_c_send_stop_to_every_robot(spawn, tmp_path: Path) -> N
                 robot.close()
 
 
+def test_a_robot_that_says_another_id_gets_nothing_and_a_moved_link_is_followed(
+    spawn, probe: Probe, tmp_path: Path
+) -> None:
+    """The device of link 3 leads to robot 9 (a stale or swapped device path): it gets no
+    WHEELS, PING or STOP and is reported. Once the path leads to robot 3 (a restarted MCU,
+    a ``by-id`` link after a replug) the driver follows it there and drives robot 3; when it
+    leads to robot 8 next, the driver waits for its HELLO again and leaves it alone."""
+    path = tmp_path / "mona3"
+    robots = [StandIn(9, path)]
+    try:
+        driver = spawn.start(
+            "aes-mona-driver", f"--link=3=serial:{path}@115200",
+            "--ros-args", "-p", "hello_timeout:=2.5",
+        )  # fmt: skip
+        diagnostics = probe.record(DiagnosticArray, names.DIAGNOSTICS, LATCHED)
+        cmd = probe.publisher(Twist, robot_topic(3, names.CMD_VEL), COMMAND)
+
+        def status() -> tuple[int, str]:
+            for msg in reversed(list(diagnostics)):
+                for s in msg.status:
+                    if s.name == "mona_driver: mona_3":
+                        return ord(s.level), s.message
+            return -1, ""
+
+        def command_for(seconds: float) -> None:
+            until = time.monotonic() + seconds
+            while time.monotonic() < until:
+                cmd.publish(twist(0.05, 0.5))
+                time.sleep(0.05)
+
+        probe.until(lambda: cmd.publish(twist(0.05, 0.5)),
+                    lambda: "says it is 9" in status()[1])  # fmt: skip
+        assert status() == (ord(DiagnosticStatus.ERROR), "the robot says it is 9: not driven")
+        command_for(3.0)  # past hello_timeout, commands coming all along
+        assert robots[0].got.messages == [], robots[0].got.messages
+        assert "id mismatch" in spawn.log(driver).read_text()
+
+        moved = time.monotonic()
+        robots.append(StandIn(3, path))  # the path leads to robot 3; robot 9 stays open
+        expected = Wheels(*wheels_from_twist(0.05, 0.5), int(TIMEOUT_S * 1000))
+        probe.until(lambda: cmd.publish(twist(0.05, 0.5)),
+                    lambda: expected in robots[1].got.of(Wheels, moved))  # fmt: skip
+        assert "moved" in spawn.log(driver).read_text()
+
+        robots.append(StandIn(8, path))  # and then to robot 8: robot 3's HELLO is not its
+        command_for(4.0)  # the move seen (1 s), robot 8's HELLO, past hello_timeout
+        os.kill(driver.pid, signal.SIGTERM)
+        assert driver.wait(TIMEOUT) == 0
+        for stranger in (robots[0], robots[2]):  # not even the STOP at the end
+            assert stranger.got.messages == [], (stranger.robot_id, stranger.got.messages)
+    finally:
+        for r in robots:
+            r.close()
+
+
 @pytest.mark.parametrize(
     ("link", "reason"),
     [
