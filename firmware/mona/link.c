@@ -46,6 +46,29 @@ enum link_error link_decode(const uint8_t *encoded, uint8_t len, uint8_t *payloa
     return LINK_OK;
 }
 
+int link_receive(struct link_rx *rx, uint8_t byte, uint8_t *payload, struct link_frame *frame) {
+    if (byte != 0) {
+        if (rx->skipping)
+            return LINK_RX_NONE;
+        if (rx->len == sizeof rx->encoded) {
+            rx->skipping = 1;
+            rx->len = 0;
+            return LINK_ERR_LENGTH;
+        }
+        rx->encoded[rx->len++] = byte;
+        return LINK_RX_NONE;
+    }
+    if (rx->skipping) {
+        rx->skipping = 0;
+        return LINK_RX_NONE;
+    }
+    if (rx->len == 0)
+        return LINK_RX_NONE;
+    uint8_t len = rx->len;
+    rx->len = 0;
+    return link_decode(rx->encoded, len, payload, frame);
+}
+
 uint8_t link_encode(uint8_t type, uint16_t seq, const uint8_t *body, uint8_t body_len,
                     uint8_t *out) {
     uint8_t payload[LINK_MAX_PAYLOAD];

@@ -41,6 +41,21 @@ uint16_t link_crc16(const uint8_t *data, uint8_t len);
 enum link_error link_decode(const uint8_t *encoded, uint8_t len, uint8_t *payload,
                             struct link_frame *frame);
 
+/* A byte stream cut into frames at each 0x00 (zero-initialise it before the first byte). */
+struct link_rx {
+    uint8_t encoded[LINK_MAX_ENCODED];
+    uint8_t len;
+    uint8_t skipping; /* an oversize frame: dropped up to the next delimiter */
+};
+
+/* No frame ended with this byte (or an empty one, a sender flushing the line). */
+#define LINK_RX_NONE (-1)
+
+/* Take one received byte. LINK_OK: a frame ended and passed (decoded into `payload`,
+ * described by `frame`); a link_error: a frame ended and was dropped, or (LINK_ERR_LENGTH)
+ * grew past LINK_MAX_ENCODED and is dropped up to the next delimiter; LINK_RX_NONE. */
+int link_receive(struct link_rx *rx, uint8_t byte, uint8_t *payload, struct link_frame *frame);
+
 /* Encode a frame with its trailing 0x00 into `out` (LINK_MAX_ENCODED + 1 bytes);
  * returns its length. `body_len` must be <= LINK_MAX_PAYLOAD - LINK_MIN_PAYLOAD. */
 uint8_t link_encode(uint8_t type, uint16_t seq, const uint8_t *body, uint8_t body_len,

@@ -48,9 +48,7 @@ static uint32_t wheels_at_ms;
 static uint16_t wheels_timeout_ms;
 static int16_t applied_left, applied_right;
 
-static uint8_t rx_encoded[LINK_MAX_ENCODED];
-static uint8_t rx_len;
-static uint8_t rx_skipping; /* an oversize frame: drop up to the next delimiter */
+static struct link_rx rx;
 
 /* Counted, not reported: docs/design.md#mona-link TELEMETRY has no field for them. */
 static uint16_t dropped_frames, tx_dropped;
@@ -157,31 +155,13 @@ static void handle(const struct link_frame *frame) {
 }
 
 static void receive(uint8_t byte) {
-    if (byte != 0) {
-        if (rx_skipping)
-            return;
-        if (rx_len == sizeof rx_encoded) {
-            rx_skipping = 1;
-            rx_len = 0;
-            dropped_frames++;
-            return;
-        }
-        rx_encoded[rx_len++] = byte;
-        return;
-    }
-    if (rx_skipping) {
-        rx_skipping = 0;
-        return;
-    }
-    if (rx_len == 0)
-        return; /* an empty frame: a sender flushing the line */
     uint8_t payload[LINK_MAX_PAYLOAD];
     struct link_frame frame;
-    if (link_decode(rx_encoded, rx_len, payload, &frame) == LINK_OK)
+    int result = link_receive(&rx, byte, payload, &frame);
+    if (result == LINK_OK)
         handle(&frame);
-    else
+    else if (result != LINK_RX_NONE)
         dropped_frames++;
-    rx_len = 0;
 }
 
 int main(void) {

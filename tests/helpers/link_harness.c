@@ -6,6 +6,9 @@
  *                                    "ok TYPE SEQ BODYHEX" or "err CODE" (enum link_error)
  *   'e' type u8, seq u16 LE, n u8, n bytes
  *                                    encode that frame: "enc HEX" (delimiter included)
+ *   's' n u16 LE, n bytes            a byte stream, as the firmware receives one
+ *                                    (link_receive from a fresh state): a line as for
+ *                                    'd' per frame that ends or is dropped, then "end"
  *
  * Built with AddressSanitizer and UBSan by the test, so a read or write out of bounds
  * on any input ends it with a report instead of an answer.
@@ -22,6 +25,16 @@ static void print_hex(const uint8_t *p, int n) {
         printf("%02x", p[i]);
 }
 
+static void print_result(int e, const struct link_frame *frame) {
+    if (e == LINK_OK) {
+        printf("ok %u %u ", frame->type, frame->seq);
+        print_hex(frame->body, frame->body_len);
+        printf("\n");
+    } else {
+        printf("err %d\n", e);
+    }
+}
+
 int main(void) {
     int kind;
     while ((kind = getchar()) != EOF) {
@@ -36,14 +49,7 @@ int main(void) {
             for (int i = 0; i < head[0]; i++)
                 encoded[i] = data[i];
             struct link_frame frame;
-            enum link_error e = link_decode(encoded, head[0], payload, &frame);
-            if (e == LINK_OK) {
-                printf("ok %u %u ", frame.type, frame.seq);
-                print_hex(frame.body, frame.body_len);
-                printf("\n");
-            } else {
-                printf("err %d\n", (int)e);
-            }
+            print_result(link_decode(encoded, head[0], payload, &frame), &frame);
             free(encoded);
         } else if (kind == 'e') {
             if (!read_bytes(head, 4) || !read_bytes(data, head[3]))
@@ -53,6 +59,21 @@ int main(void) {
             printf("enc ");
             print_hex(out, n);
             printf("\n");
+        } else if (kind == 's') {
+            if (!read_bytes(head, 2))
+                return 2;
+            struct link_rx rx = {{0}, 0, 0};
+            uint8_t payload[LINK_MAX_PAYLOAD];
+            struct link_frame frame;
+            for (int n = get_u16(head); n > 0; n--) {
+                int byte = getchar();
+                if (byte == EOF)
+                    return 2;
+                int e = link_receive(&rx, (uint8_t)byte, payload, &frame);
+                if (e != LINK_RX_NONE)
+                    print_result(e, &frame);
+            }
+            printf("end\n");
         } else {
             return 2;
         }

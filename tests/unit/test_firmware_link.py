@@ -1,12 +1,15 @@
 """The firmware's Mona link code (firmware/mona/link.c) against the driver's
 (:mod:`aes_ros.mona.framing`), on the host: the same verdict on every frame, good or bad.
 
-A harness (tests/helpers/link_harness.c) built with AddressSanitizer and UBSan decodes
-and encodes what the test sends. Tens of thousands of frames: valid ones, the same with
-bits flipped, bytes dropped, inserted or cut, and random bytes of every length up to 255.
-Both sides must accept the same frames with the same type, seq and body, reject the others
-for the same reason, and encode every frame to the same bytes; no input may read or write
-out of bounds. tests/system/test_firmware.py checks the built firmware in simavr.
+A harness (tests/helpers/link_harness.c) built with AddressSanitizer and UBSan decodes,
+encodes and receives what the test sends. Tens of thousands of frames: valid ones, the
+same with bits flipped, bytes dropped, inserted or cut, and random bytes of every length
+up to 255; and byte streams of such frames, delimiters lost or doubled, as the firmware
+receives them byte by byte (:class:`aes_ros.mona.framing.FrameReader` on the driver's
+side). Both sides must accept the same frames with the same type, seq and body, reject
+the others for the same reason, and encode every frame to the same bytes; no input may
+read or write out of bounds. tests/system/test_firmware.py checks the built firmware in
+simavr.
 """
 
 from __future__ import annotations
@@ -132,3 +135,46 @@ def test_the_firmware_and_the_driver_encode_every_frame_alike(harness: Path) -> 
                        for t, s, b in frames)  # fmt: skip
     lines = run(harness, records)
     assert lines == [f"enc {framing.encode_frame(t, s, b).hex()}" for t, s, b in frames]
+
+
+def stream(rng: random.Random) -> bytes:
+    """Frames on a line: valid, damaged or random, delimiters sometimes lost or doubled,
+    now and then a run of non-zero bytes longer than any frame."""
+    data = bytearray()
+    for _ in range(rng.randrange(1, 12)):
+        pick = rng.randrange(10)
+        if pick < 4:
+            data += valid_frame(rng)
+        elif pick < 8:
+            data += mutated(valid_frame(rng), rng)
+        elif pick < 9:
+            data += bytes(rng.randrange(1, 256) for _ in range(rng.randrange(60, 200)))
+        else:
+            data += bytes(rng.randrange(256) for _ in range(rng.randrange(20)))
+        data += b"\x00" * rng.choice((1, 1, 1, 0, 2))
+    return bytes(data)
+
+
+def test_the_firmware_and_the_driver_cut_every_stream_alike(harness: Path) -> None:
+    rng = random.Random(3)
+    streams = [stream(rng) for _ in range(3000)]
+    lines = run(harness, b"".join(b"s" + len(s).to_bytes(2, "little") + s for s in streams))
+    firmware: list[list[str]] = [[]]
+    for line in lines:
+        if line == "end":
+            firmware.append([])
+        else:
+            firmware[-1].append(c_verdict(line))
+    assert firmware.pop() == [] and len(firmware) == len(streams)
+    driver = [
+        [f"err {x.kind}" if isinstance(x, ProtocolError) else f"ok {x.type} {x.seq} {x.body.hex()}"
+         for x in framing.FrameReader().feed(s)]
+        for s in streams
+    ]  # fmt: skip
+    differ = [(s.hex(), f, d) for s, f, d in zip(streams, firmware, driver, strict=True) if f != d]
+    assert not differ, (
+        f"{len(differ)} streams cut differently, e.g. (stream, firmware, driver) {differ[0]}"
+    )
+    # they reached every verdict, the oversize frame among them
+    seen = {v.split()[0] if v.startswith("ok") else v for f in firmware for v in f}
+    assert seen == {"ok", *(f"err {k}" for k in C_ERRORS.values())}
