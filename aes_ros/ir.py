@@ -27,7 +27,7 @@ from aes_ros.mona.messages import IR_BEARINGS_DEG
 IR_ANGLES = np.radians(IR_BEARINGS_DEG)
 #: An empty (0,) or (0, k) array: no walls, circles or boxes.
 NO_WALLS = np.zeros(0)
-#: Relative looseness of the frame test that picks which rays can meet another robot.
+#: Relative looseness of the test that skips a body behind a robot (no ray reaches it).
 _FRAME_SLACK = 1e-6
 
 
@@ -228,25 +228,27 @@ def _see_robot(
 ) -> None:
     """Robot i's rays against robot j's body disc, into ``out[i]`` (the minimum).
 
-    In i's frame a ray meets the disc, or starts inside it, only if the disc's centre is
-    within a radius of the ray's line and not behind the sensor's side of the body; only
-    those rays are cast (with :func:`_disc_hit`, the same bits as casting all of them: the
-    others miss); none if j's centre lies ``behind`` [m] (:func:`_blind_behind`) or further
-    back. The tests are loose by ``_FRAME_SLACK`` so rounding never skips a hit."""
+    :func:`_disc_hit` in each ray's frame, where j's centre lies ``along`` the ray from
+    i's centre and ``off_line`` beside it, and the sensor body_radius along: from the
+    offsets in i's frame that every ray shares, for all rays without a branch (cheaper
+    than picking the rays that can hit, which mispredicts); none if j's centre lies
+    ``behind`` [m] (:func:`_blind_behind`) or further back."""
     dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
     ch, sh = cos_h[i], sin_h[i]
     ahead = dx * ch + dy * sh
     if ahead < behind:
         return
     left = dy * ch - dx * sh
-    line2 = body_radius * body_radius * (1.0 + _FRAME_SLACK)
+    r2 = body_radius * body_radius
     for a in range(mount.shape[0]):
         ca, sa = mount[a, 0], mount[a, 1]
-        off_line = left * ca - ahead * sa
-        if off_line * off_line > line2 or ahead * ca + left * sa < -_FRAME_SLACK * body_radius:
-            continue
-        sx, sy, ux, uy = _ray(i, a, centres, cos_h, sin_h, mount, body_radius)
-        hit = _disc_hit(sx, sy, ux, uy, centres[j, 0], centres[j, 1], body_radius)
+        along = ahead * ca + left * sa
+        off2 = (left * ca - ahead * sa) ** 2
+        b = body_radius - along  # (sensor - centre) . ray
+        c = b * b + off2 - r2  # |sensor - centre|^2 - r^2
+        t = -b - math.sqrt(max(r2 - off2, 0.0))  # the nearer root, when there is one
+        hit = math.inf if (b >= 0.0) | (off2 > r2) else t  # behind the sensor, or beside
+        hit = 0.0 if c <= 0.0 else hit  # from inside
         out[i, a] = min(out[i, a], hit)
 
 
