@@ -41,6 +41,7 @@ from aes_ros.avoidance import AVOIDANCE_RANGE, IR_ANGLES
 from aes_ros.contacts import NO_BOXES, NO_CIRCLES, NO_WALLS, _separate_listed
 from aes_ros.ir import cast_rays_listed, mounting
 from aes_ros.kernel_bodies import list_cutoffs, ray_reach
+from aes_ros.numba_cache import depend_on
 from aes_ros.pair_list import kept_pairs
 
 #: Bodies and the IR avoidance term as bench_sim.py's contacts+IR row has them.
@@ -98,6 +99,10 @@ def replay(
                 )  # fmt: skip
                 total += out[t % n, 0]
     return total
+
+
+# an edit of the parts replayed must compile the replay again (aes_ros.numba_cache)
+depend_on(replay, "aes_ros.contacts", "aes_ros.ir", "aes_ros.pair_list")
 
 
 def main() -> None:
