@@ -345,7 +345,7 @@ def cast_rays_listed(
     reach2 = reach * reach
     behind = _blind_behind(mount, body_radius)
     for e in range(pairs.shape[0]):
-        i, j = pairs[e, 0], pairs[e, 1]
+        i, j = np.uint64(pairs[e, 0]), np.uint64(pairs[e, 1])  # no wrap (contacts._separate_listed)
         dx, dy = centres[j, 0] - centres[i, 0], centres[j, 1] - centres[i, 1]
         if not dx * dx + dy * dy < reach2:  # also a NaN centre
             continue
