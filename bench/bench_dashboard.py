@@ -44,9 +44,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from bench_faults import pid_of
-from bench_ros import cpu_seconds
 from helpers.browser import headless_chromium, page_state, unavailable
 from helpers.dashboard import origin_of, printed_url, socket_url
+from process_stats import cpu_seconds
 
 from aes_ros import scenario
 from aes_ros.cli.deprecated import add_deprecated

@@ -65,7 +65,7 @@ from pathlib import Path
 
 import firmware_chain  # sibling scripts, not a package
 import firmware_latency
-from bench_ros import machine_reference_us
+from process_stats import machine_reference_us
 
 from aes_ros.mona.messages import Wheels
 from aes_ros.ros.launch.firmware import BUILD

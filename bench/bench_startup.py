@@ -37,7 +37,7 @@ from aes_ros.ros.launch.processes import PROFILE_VARIABLES, fastdds_environment
 from aes_ros.ros.launch.shared_memory import clean_shared_memory
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_ros import machine_reference_us  # a sibling script, not a package
+from process_stats import machine_reference_us  # a sibling script, not a package
 
 #: Domain IDs of this benchmark (far from the tests' and the launcher's defaults).
 FIRST_DOMAIN = 150

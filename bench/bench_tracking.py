@@ -37,7 +37,7 @@ from aes_ros import scenario as scenario_mod
 from aes_ros.cli.deprecated import add_deprecated
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_ros import cpu_seconds, machine_reference_us  # a sibling script, not a package
+from process_stats import cpu_seconds, machine_reference_us  # a sibling script, not a package
 from tracking_probe import Probe, analyse, in_process_times
 from tracking_report import print_row, print_targets, result_line, say, write_csv
 

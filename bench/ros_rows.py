@@ -211,3 +211,10 @@ def plot(rows: list[Row], path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def per_robot_step(cpu_pct: float, stats: dict, robots: int) -> float:
+    """µs of CPU (bridge + supervisor + robot processes) per robot per control step
+    answered: CPU [% of a core] over the commands the bridge received per second."""
+    commands_per_s = stats["rate_median_hz"] * robots
+    return 1e6 * (cpu_pct / 100.0) / commands_per_s if commands_per_s > 0 else float("nan")
