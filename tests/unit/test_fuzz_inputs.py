@@ -4,7 +4,7 @@ documented error comes out.
 - a viewer's control message (:func:`dashboard_node.controls.parse_control`): any JSON
   value, and any text, gives a ``Control`` or a ``ControlError``;
 - a parameter value from a scenario file, ``--set`` or a ROS parameter
-  (:meth:`aes_ros.params.ParamSpec.validate`): any value gives the value converted or a
+  (:meth:`aes_ros.param_spec.ParamSpec.validate`): any value gives the value converted or a
   ``ParameterError`` naming the parameter;
 - every wire-format decoder of :mod:`aes_ros.ros.cdr`: valid messages with bits flipped,
   bytes cut, inserted or overwritten by a huge length give a correct decode or a
@@ -24,7 +24,8 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from aes_ros.params import PARAMS, ParameterError
+from aes_ros.param_spec import ParameterError
+from aes_ros.params import PARAMS
 from aes_ros.ros.cdr import (
     OdometryEncoder,
     PoseArrayEncoder,
