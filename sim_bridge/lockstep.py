@@ -4,9 +4,10 @@ Members are the robots (their ``cmd_vel``) and, when a recording must be
 lossless, the recorder (its progress). A member silent for longer than
 ``timeout`` wall seconds while the barrier waits for it leaves the barrier, so
 that one dead robot does not stall the swarm; it is back in as soon as it answers
-again. Silent means: no answer since the later of its last answer and the start
-of the step awaited (a member that answered at once, then waited with everyone for
-a dead one, has had no time to answer the step after it). A member never heard
+again. Silent means: no answer since the later of its last answer and the moment
+the state of the step awaited was out (a member that answered at once, then waited with
+everyone for a dead one, has had no time to answer the step after it; nor has one
+whose answer waits in the bridge's queue while the bridge steps and publishes). A member never heard
 from is waited for without a timeout (it may still be starting). With no fault
 every step waits for everyone: a run stays deterministic.
 """
@@ -74,6 +75,7 @@ class LockstepBarrier:
         return bool(self._member[member])
 
     def next_step(self, now: float) -> None:
-        """The world stepped (or was reset) at wall time ``now``: wait for every member again."""
+        """The world stepped (or was reset) and its state is out at wall time ``now``: wait
+        for every member again."""
         self._fresh[:] = False
         self._step_since = now

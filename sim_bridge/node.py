@@ -267,10 +267,13 @@ class SimBridgeNode(Node):
                 self.step_timer.cancel()
                 self.waiting = True
             return
-        self.barrier.next_step(time.monotonic())
         self.world.step()
         self.stats.bodies(*self.world.last_contacts)
         self.publish_state()
+        # the members' time to answer starts when this state is out and the bridge listens
+        # again: a slow step (a busy machine, the first step's cache loads) is not their
+        # silence (it dropped healthy robots in CI, their answers queued behind the step)
+        self.barrier.next_step(time.monotonic())
 
     def _hold(self) -> None:
         """Pause at ``pause_at``: the state published last is the one at that time."""
@@ -320,8 +323,8 @@ class SimBridgeNode(Node):
     def on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """Back to the initial state; every robot stopped; the clock keeps running."""
         self.world.reset()
-        self.barrier.next_step(time.monotonic())
         self.publish_state()
+        self.barrier.next_step(time.monotonic())
         response.success = True
         response.message = f"reset {self.n} robots to the initial state at t={self.world.time:g} s"
         return response

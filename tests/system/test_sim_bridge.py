@@ -185,6 +185,39 @@ def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
     assert "robot 1 answered again: back in the barrier" in spawn.log(proc).read_text()
 
 
+def test_a_slow_step_of_the_bridge_is_not_taken_for_the_robots_silence(spawn, probe, tmp_path):
+    """The bridge's first step compiles its contact code (its numba cache is empty here)
+    and takes far longer than lockstep_timeout; the robots cannot answer that step before
+    its state is out, so they stay in the barrier: the run equals the offline model and no
+    robot is stopped. (Their silence was counted from the start of the step: both left
+    the barrier right after a slow step, as in a CI run on a busy machine.)"""
+    spawn.env = {**spawn.env, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
+    proc, bridge = start_bridge(
+        spawn, probe, 2,
+        "num_robots:=2", "seed:=5", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
+        "lockstep_timeout:=1.5",
+    )  # fmt: skip
+    answered: set[float] = set()
+    commands = {0: (0.1, 0.5), 1: (-0.05, -1.0)}
+
+    def reply(t: float, _pos: np.ndarray, _head: np.ndarray) -> None:
+        if t not in answered:
+            answered.add(t)
+            for i, command in commands.items():
+                bridge.send(i, *command)
+
+    probe.on_poses = reply
+    probe.sample_poses(2)
+    probe.wait(lambda: len(answered) >= 6, 120.0, "lockstep advancing 5 steps")
+    assert "left the barrier" not in spawn.log(proc).read_text()
+    pos, head = load("combined").with_robots(2).initial_state(5)
+    target = round(max(answered) / 0.05)
+    for _ in range(target):
+        pos, head = unicycle_step(pos, head, np.array([0.1, -0.05]), np.array([0.5, -1.0]), 0.05)
+    k = next(k for k in reversed(range(len(probe.times))) if round(probe.times[k] / 0.05) == target)
+    np.testing.assert_allclose(probe.sample(k)[1], pos, atol=1e-9)
+
+
 def test_reset_and_pause_services(spawn, probe):
     proc, bridge = start_bridge(spawn, probe, 2, "num_robots:=2", "seed:=1", "cmd_timeout:=10.0")
     probe.sample_poses(2)
