@@ -33,7 +33,9 @@ DOMAIN_IDS = range(1, 101)
 
 @contextlib.contextmanager
 def reserved_domain_id() -> Iterator[int]:
-    """Hold an unused ROS_DOMAIN_ID for the duration of the block."""
+    """Hold an unused ROS_DOMAIN_ID for the duration of the block: one no other test
+    holds and no live process is in (a process an earlier test left, still exiting, would
+    talk to this test's nodes and count as its orphan)."""
     LOCK_DIR.mkdir(exist_ok=True)
     start = os.getpid() % len(DOMAIN_IDS)
     for offset in range(len(DOMAIN_IDS)):
@@ -42,6 +44,10 @@ def reserved_domain_id() -> Iterator[int]:
         try:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
+            fh.close()
+            continue
+        if _domain_processes(str(domain)):
+            fcntl.flock(fh, fcntl.LOCK_UN)
             fh.close()
             continue
         try:
@@ -149,7 +155,8 @@ def assert_no_orphans(ros_env: dict[str, str], timeout: float = 15.0) -> None:
     deadline = time.monotonic() + timeout
     while processes_in_domain(domain) and time.monotonic() < deadline:
         time.sleep(0.2)
-    assert processes_in_domain(domain) == []
+    left = _domain_processes(domain)  # (helpers get no assertion rewriting: name them)
+    assert left == [], f"processes of domain {domain} left after {timeout:g} s: {left}"
 
 
 class Processes:
