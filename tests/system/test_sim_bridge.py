@@ -118,38 +118,54 @@ def test_bridge_publishes_the_scenario_and_follows_cmd_vel(spawn, probe):
     assert "Traceback" not in spawn.logs()
 
 
-def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
+#: What the probe answers for each robot in the lockstep tests: (linear [m/s], angular [rad/s]).
+LOCKSTEP_COMMANDS = {0: (0.1, 0.5), 1: (-0.05, -1.0)}
+
+
+def lockstep_pair(spawn, probe: Probe, timeout: float):
+    """A lockstep bridge of 2 robots (seed 5, full speed, no clipping, ``lockstep_timeout``
+    ``timeout`` [s]) whose robots the probe plays: it answers each new state with
+    :data:`LOCKSTEP_COMMANDS` of the robots in ``answer["robots"]``. Returns the process,
+    the bridge, the sim times [s] answered and ``answer``."""
     proc, bridge = start_bridge(
         spawn, probe, 2,
         "num_robots:=2", "seed:=5", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
-        "lockstep_timeout:=2.0",
+        f"lockstep_timeout:={timeout}",
     )  # fmt: skip
     answered: set[float] = set()
     answer = {"robots": [0, 1]}
-    commands = {0: (0.1, 0.5), 1: (-0.05, -1.0)}
 
     def reply(t: float, _pos: np.ndarray, _head: np.ndarray) -> None:
         if t not in answered:
             answered.add(t)
             for i in answer["robots"]:
-                bridge.send(i, *commands[i])
+                bridge.send(i, *LOCKSTEP_COMMANDS[i])
 
     probe.on_poses = reply
     probe.sample_poses(2)
-    probe.wait(lambda: len(answered) >= 41, 30.0, "lockstep advancing 40 steps")
-    stamps = sorted(answered)
-    np.testing.assert_allclose(np.diff(stamps[:41]), 0.05, atol=1e-9)  # no step skipped
+    return proc, bridge, answered, answer
 
-    # the bridge integrated exactly the offline model with these commands
+
+def assert_offline_model(probe: Probe, t: float) -> None:
+    """The poses the probe got at sim time ``t`` [s] are exactly those of the offline
+    unicycle model driven by :data:`LOCKSTEP_COMMANDS` from the bridge's initial state."""
     pos, head = load("combined").with_robots(2).initial_state(5)
-    u, turn = np.array([0.1, -0.05]), np.array([0.5, -1.0])
-    target = round(stamps[-1] / 0.05)
+    u, turn = (np.array(v) for v in zip(*LOCKSTEP_COMMANDS.values(), strict=True))
+    target = round(t / 0.05)
     for _ in range(target):
         pos, head = unicycle_step(pos, head, u, turn, 0.05)
     k = next(k for k in reversed(range(len(probe.times))) if round(probe.times[k] / 0.05) == target)
     _, got_pos, got_head = probe.sample(k)
     np.testing.assert_allclose(got_pos, pos, atol=1e-9)
     np.testing.assert_allclose(np.cos(got_head - head), 1.0, atol=1e-12)
+
+
+def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
+    proc, bridge, answered, answer = lockstep_pair(spawn, probe, 2.0)
+    probe.wait(lambda: len(answered) >= 41, 30.0, "lockstep advancing 40 steps")
+    stamps = sorted(answered)
+    np.testing.assert_allclose(np.diff(stamps[:41]), 0.05, atol=1e-9)  # no step skipped
+    assert_offline_model(probe, stamps[-1])  # the bridge integrated exactly these commands
 
     # robot 1 falls silent: the bridge waits lockstep_timeout (2 s of wall time since its
     # last answer), then goes on without it and stops its body
@@ -170,7 +186,7 @@ def test_lockstep_steps_once_per_round_of_commands(spawn, probe):
     assert np.linalg.norm(pos_b[0] - pos_a[0]) > 1e-3  # robot 0 goes on
     assert "robot 1 silent for 2 s" in spawn.log(proc).read_text()
     # robot 1 answers again: back in the barrier, so the bridge waits for it again
-    bridge.send(1, *commands[1])
+    bridge.send(1, *LOCKSTEP_COMMANDS[1])
     answer["robots"] = [0, 1]
     resumed = max(answered)
     probe.wait(lambda: max(answered) >= resumed + 0.5, 10.0, "lockstep with robot 1 again")
@@ -192,30 +208,10 @@ def test_a_slow_step_of_the_bridge_is_not_taken_for_the_robots_silence(spawn, pr
     robot is stopped. (Their silence was counted from the start of the step: both left
     the barrier right after a slow step, as in a CI run on a busy machine.)"""
     spawn.env = {**spawn.env, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}
-    proc, bridge = start_bridge(
-        spawn, probe, 2,
-        "num_robots:=2", "seed:=5", "lockstep:=true", "real_time_factor:=0.0", "clip:=false",
-        "lockstep_timeout:=1.5",
-    )  # fmt: skip
-    answered: set[float] = set()
-    commands = {0: (0.1, 0.5), 1: (-0.05, -1.0)}
-
-    def reply(t: float, _pos: np.ndarray, _head: np.ndarray) -> None:
-        if t not in answered:
-            answered.add(t)
-            for i, command in commands.items():
-                bridge.send(i, *command)
-
-    probe.on_poses = reply
-    probe.sample_poses(2)
+    proc, _, answered, _ = lockstep_pair(spawn, probe, 1.5)
     probe.wait(lambda: len(answered) >= 6, 120.0, "lockstep advancing 5 steps")
     assert "left the barrier" not in spawn.log(proc).read_text()
-    pos, head = load("combined").with_robots(2).initial_state(5)
-    target = round(max(answered) / 0.05)
-    for _ in range(target):
-        pos, head = unicycle_step(pos, head, np.array([0.1, -0.05]), np.array([0.5, -1.0]), 0.05)
-    k = next(k for k in reversed(range(len(probe.times))) if round(probe.times[k] / 0.05) == target)
-    np.testing.assert_allclose(probe.sample(k)[1], pos, atol=1e-9)
+    assert_offline_model(probe, max(answered))
 
 
 def test_reset_and_pause_services(spawn, probe):
