@@ -12,7 +12,6 @@ or opened at start ends the driver with exit code 2 and the reason.
 from __future__ import annotations
 
 import math
-import os
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -249,8 +248,9 @@ class MonaDriverNode(Node):
         now = time.monotonic()
         for link in self.links:
             port = link.transport
-            if isinstance(port, SerialPort) and port.moved():
-                link.drop(f"{link.spec.device} now leads to {os.path.realpath(port.device)}", now)
+            moved_to = port.moved_to() if isinstance(port, SerialPort) else None
+            if moved_to is not None:
+                link.drop(f"{link.spec.device} now leads to {moved_to}", now)
                 self.warn(f"link of mona_{link.robot_id} moved: {link.stats.last_error}; reopening")
 
     def _poll_serial(self, link: RobotLink, now: float) -> None:

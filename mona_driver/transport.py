@@ -60,11 +60,15 @@ class SerialPort:
         self.fd = fd
         self.opened_path = path
 
-    def moved(self) -> bool:
-        """Open, and ``device`` now leads elsewhere: a symlink moved to another device (a
-        ``/dev/serial/by-id`` link after a replug, the firmware loop's link to a restarted
-        MCU), so the open one may be another robot's, or nobody's."""
-        return self.fd is not None and os.path.realpath(self.device) != self.opened_path
+    def moved_to(self) -> str | None:
+        """Where ``device`` now leads if the port is open and it leads elsewhere (a
+        symlink moved to another device: a ``/dev/serial/by-id`` link after a replug, the
+        firmware loop's link to a restarted MCU), so the open one may be another robot's,
+        or nobody's; else None."""
+        if self.fd is None:
+            return None
+        path = os.path.realpath(self.device)
+        return path if path != self.opened_path else None
 
     def close(self) -> None:
         if self.fd is not None:
